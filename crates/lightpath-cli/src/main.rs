@@ -1,0 +1,112 @@
+//! `lightpath`: render scenes, run the course's test scenes, compare images.
+
+mod compare;
+mod default_scene;
+mod progress;
+mod render;
+mod test;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(name = "lightpath", version, about = "A physically based ray tracer", propagate_version = true)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a scene to an image (with no SCENE, a built-in default scene).
+    Render(render::RenderArgs),
+    /// Render lightwave <test> scenes and compare them with their reference images.
+    Test(test::TestArgs),
+    /// Print error metrics between two images.
+    Compare(compare::CompareArgs),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let result: Result<bool> = match cli.command {
+        Command::Render(args) => render::run(args).map(|_| true),
+        Command::Test(args) => test::run(args),
+        Command::Compare(args) => compare::run(args).map(|_| true),
+    };
+    match result {
+        Ok(true) => {}
+        Ok(false) => std::process::exit(1),
+        Err(e) => {
+            // One line: the library's errors already carry file:line:col.
+            let mut msg = format!("error: {e}");
+            for cause in e.chain().skip(1) {
+                msg.push_str(&format!(": {cause}"));
+            }
+            eprintln!("{msg}");
+            std::process::exit(1);
+        }
+    }
+}
+
+/// Shared options of commands that render.
+#[derive(clap::Args, Clone)]
+pub struct RenderOptions {
+    /// Samples per pixel (overrides the scene's sampler).
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Acceleration structure: list, bvh2 (default).
+    #[arg(long, default_value = "bvh2")]
+    pub accel: String,
+    /// Seed of the random sequences.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Scene parameter substitution `$name` -> value (repeatable).
+    #[arg(short = 'D', value_name = "NAME=VALUE")]
+    pub defines: Vec<String>,
+    /// Print nothing but errors.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+impl RenderOptions {
+    pub fn load_options(&self) -> Result<lightpath::io::LoadOptions> {
+        let accel = lightpath::accel::AccelKind::from_name(&self.accel).ok_or_else(|| {
+            anyhow::anyhow!("unknown --accel `{}`; known: {}", self.accel, lightpath::accel::AccelKind::NAMES.join(", "))
+        })?;
+        let mut defines = Vec::new();
+        for d in &self.defines {
+            let (k, v) = d.split_once('=').ok_or_else(|| anyhow::anyhow!("-D expects NAME=VALUE, got `{d}`"))?;
+            defines.push((k.to_string(), v.to_string()));
+        }
+        Ok(lightpath::io::LoadOptions { accel, defines })
+    }
+
+    /// Sets up the global thread pool.
+    pub fn init_threads(&self) -> Result<()> {
+        if let Some(n) = self.threads {
+            if n == 0 {
+                anyhow::bail!("--threads must be at least 1");
+            }
+            rayon::ThreadPoolBuilder::new().num_threads(n).build_global()?;
+        }
+        Ok(())
+    }
+
+    /// The sampler after command-line overrides.
+    pub fn sampler(&self, s: &lightpath::sampling::Sampler) -> Result<lightpath::sampling::Sampler> {
+        let mut s = s.clone();
+        if let Some(spp) = self.spp {
+            if spp == 0 {
+                anyhow::bail!("--spp must be at least 1");
+            }
+            s = s.with_samples_per_pixel(spp);
+        }
+        if let Some(seed) = self.seed {
+            s = s.with_seed(seed);
+        }
+        Ok(s)
+    }
+}

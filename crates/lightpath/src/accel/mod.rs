@@ -1,0 +1,98 @@
+//! Acceleration structures over boxes and primitive indices.
+//!
+//! An accelerator never knows what a primitive is: it is built from one bounding box per
+//! primitive, and its queries take a closure that intersects primitive `i`. For the
+//! closest hit, the closure gets the current `t_max` by reference and shrinks it when it
+//! finds a closer hit; for the any-hit (shadow) query it answers whether primitive `i`
+//! blocks the ray, and traversal stops at the first `true`.
+
+pub mod bvh;
+mod list;
+
+pub use bvh::{Bvh, BvhNode, BvhStats};
+pub use list::ListAccel;
+
+use crate::math::{Bounds3, Ray};
+
+/// Per-ray traversal counters, drawn by the `bvh` AOV.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct RayStats {
+    /// Nodes whose box was tested.
+    pub nodes_visited: u32,
+    /// Primitives handed to the intersection closure.
+    pub prims_tested: u32,
+}
+
+/// Which accelerator to build.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum AccelKind {
+    /// Brute force over all primitives: the correctness oracle.
+    List,
+    /// Binary BVH with a binned SAH build.
+    #[default]
+    Bvh2,
+}
+
+impl AccelKind {
+    pub const NAMES: &'static [&'static str] = &["list", "bvh2", "bvh"];
+
+    pub fn from_name(name: &str) -> Option<AccelKind> {
+        match name {
+            "list" => Some(AccelKind::List),
+            "bvh" | "bvh2" => Some(AccelKind::Bvh2),
+            _ => None,
+        }
+    }
+}
+
+/// An accelerator of any kind.
+#[derive(Debug, Clone)]
+pub enum Accel {
+    List(ListAccel),
+    Bvh(Bvh),
+}
+
+impl Accel {
+    /// Builds an accelerator of `kind` over the primitive boxes.
+    pub fn build(kind: AccelKind, bounds: &[Bounds3]) -> Accel {
+        match kind {
+            AccelKind::List => Accel::List(ListAccel::new(bounds)),
+            AccelKind::Bvh2 => Accel::Bvh(Bvh::build(bounds, &bvh::BuildSettings::default())),
+        }
+    }
+
+    /// Bounds of everything.
+    pub fn bounds(&self) -> Bounds3 {
+        match self {
+            Accel::List(a) => a.bounds(),
+            Accel::Bvh(a) => a.bounds(),
+        }
+    }
+
+    /// Closest hit: `hit(prim, &mut t_max)` returns true when it found a closer hit and
+    /// lowered `t_max`. Returns whether anything was hit.
+    #[inline]
+    pub fn intersect<F: FnMut(u32, &mut f32) -> bool>(&self, ray: &Ray, stats: &mut RayStats, hit: F) -> bool {
+        match self {
+            Accel::List(a) => a.intersect(ray, stats, hit),
+            Accel::Bvh(a) => a.intersect(ray, stats, hit),
+        }
+    }
+
+    /// Any hit: stops at the first primitive for which `blocks(prim)` is true.
+    #[inline]
+    pub fn occluded<F: FnMut(u32) -> bool>(&self, ray: &Ray, stats: &mut RayStats, blocks: F) -> bool {
+        match self {
+            Accel::List(a) => a.occluded(ray, stats, blocks),
+            Accel::Bvh(a) => a.occluded(ray, stats, blocks),
+        }
+    }
+
+    /// Bytes used by the structure (nodes and index arrays).
+    pub fn memory_bytes(&self) -> usize {
+        match self {
+            Accel::List(a) => a.memory_bytes(),
+            Accel::Bvh(a) => a.memory_bytes(),
+        }
+    }
+}

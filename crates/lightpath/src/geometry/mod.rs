@@ -1,0 +1,24 @@
+//! Geometry: the shapes a scene is built from, each intersected in its own object space,
+//! and the surface interactions they produce.
+
+mod cuboid;
+mod cylinder;
+mod disk;
+mod interaction;
+mod mesh;
+mod mesh_data;
+mod plane;
+mod rectangle;
+mod shape;
+mod sphere;
+
+pub use cuboid::Cuboid;
+pub use cylinder::Cylinder;
+pub use disk::Disk;
+pub use interaction::{SurfaceInteraction, SHADOW_EPSILON};
+pub use mesh::{intersect_triangle_watertight, TriangleMesh, WatertightRay};
+pub use mesh_data::MeshData;
+pub use plane::Plane;
+pub use rectangle::Rectangle;
+pub use shape::{Shape, ShapeHit};
+pub use sphere::Sphere;

@@ -1,0 +1,68 @@
+//! Arbitrary output variables: geometric quantities of the first hit, for debugging and
+//! for the course's tests.
+//!
+//! ```xml
+//! <integrator type="aov" variable="normals">   <!-- normals, distance, uv, bvh -->
+//!     <scene>...</scene>
+//! </integrator>
+//! <integrator type="aov" variable="bvh" scale="100">...</integrator>
+//! ```
+//!
+//! | variable  | value                                                              | miss      |
+//! |-----------|--------------------------------------------------------------------|-----------|
+//! | `normals` | shading normal mapped to colour, `(n + 1) / 2`                     | 0.5       |
+//! | `distance`| distance from the ray origin to the hit                            | 0         |
+//! | `uv`      | texture coordinates `(u, v, 0)`                                    | 0         |
+//! | `bvh`     | `(nodes visited, primitives tested, 0) / scale`                    | counts    |
+
+use crate::accel::RayStats;
+use crate::math::Ray;
+use crate::scene::Scene;
+use glam::Vec3;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AovVariable {
+    Normals,
+    Distance,
+    Uv,
+    Bvh,
+}
+
+impl AovVariable {
+    pub const NAMES: &'static [&'static str] = &["normals", "distance", "uv", "bvh"];
+
+    pub fn from_name(name: &str) -> Option<AovVariable> {
+        match name {
+            "normals" => Some(AovVariable::Normals),
+            "distance" => Some(AovVariable::Distance),
+            "uv" => Some(AovVariable::Uv),
+            "bvh" => Some(AovVariable::Bvh),
+            _ => None,
+        }
+    }
+}
+
+#[derive(Debug, Clone)]
+pub struct Aov {
+    pub variable: AovVariable,
+    /// Divisor of the `bvh` counters.
+    pub scale: f32,
+}
+
+impl Aov {
+    pub fn li(&self, scene: &Scene, ray: &Ray, stats: &mut RayStats) -> Vec3 {
+        let mut ray_stats = RayStats::default();
+        let hit = scene.intersect_with_stats(ray, &mut ray_stats);
+        stats.nodes_visited += ray_stats.nodes_visited;
+        stats.prims_tested += ray_stats.prims_tested;
+        match self.variable {
+            AovVariable::Normals => match hit {
+                Some(si) => (si.shading_n + Vec3::ONE) * 0.5,
+                None => Vec3::splat(0.5),
+            },
+            AovVariable::Distance => hit.map_or(Vec3::ZERO, |si| Vec3::splat(si.t * ray.direction.length())),
+            AovVariable::Uv => hit.map_or(Vec3::ZERO, |si| Vec3::new(si.uv.x, si.uv.y, 0.0)),
+            AovVariable::Bvh => Vec3::new(ray_stats.nodes_visited as f32, ray_stats.prims_tested as f32, 0.0) / self.scale,
+        }
+    }
+}

@@ -1,0 +1,36 @@
+//! Integrators: what a camera ray's sample value is.
+
+mod aov;
+mod camera_direction;
+
+pub use aov::{Aov, AovVariable};
+pub use camera_direction::CameraDirection;
+
+use crate::accel::RayStats;
+use crate::math::Ray;
+use crate::sampling::Sampler;
+use crate::scene::Scene;
+use glam::Vec3;
+
+/// An integrator of any kind.
+#[derive(Debug, Clone)]
+pub enum Integrator {
+    Aov(Aov),
+    CameraDirection(CameraDirection),
+}
+
+impl Integrator {
+    /// The value carried by a camera ray.
+    #[inline]
+    pub fn li(&self, scene: &Scene, ray: &Ray, sampler: &mut Sampler, stats: &mut RayStats) -> Vec3 {
+        match self {
+            Integrator::Aov(i) => i.li(scene, ray, stats),
+            Integrator::CameraDirection(i) => i.li(ray, sampler),
+        }
+    }
+
+    /// The value of a pixel sample where the camera produced no ray.
+    pub fn no_ray_value(&self) -> Vec3 {
+        Vec3::ZERO
+    }
+}

@@ -1,0 +1,398 @@
+//! The course's scene format (lightwave XML).
+//!
+//! ```xml
+//! <test type="image" id="sphere" mae="1e-3">      <!-- optional: a test with limits -->
+//!   <integrator type="aov" variable="normals">
+//!     <scene>
+//!       <camera type="perspective">
+//!         <integer name="width" value="512"/>
+//!         <integer name="height" value="512"/>
+//!         <float name="fov" value="40"/>
+//!         <transform><lookat origin="2,0,-3" target="0,0,0" up="0,1,0"/></transform>
+//!       </camera>
+//!       <instance>
+//!         <shape type="sphere"/>
+//!         <transform><scale value="0.5"/><translate y="0.6"/></transform>
+//!       </instance>
+//!     </scene>
+//!     <sampler type="independent" count="16"/>
+//!   </integrator>
+//! </test>
+//! ```
+//!
+//! Transform steps (`translate`, `scale`, `rotate`, `lookat`, `matrix`, row-major) apply
+//! in document order. Every element and property must be understood: an unknown type or
+//! property is an error with its file, line and column.
+
+use super::props::Node;
+use super::xml::resolve_path;
+use super::{LoadOptions, LoadedScene, TestSpec};
+use crate::accel::AccelKind;
+use crate::camera::{Aperture, Camera, Fisheye, FisheyeMapping, FovAxis, Orthographic, Perspective, ThinLens};
+use crate::error::{Error, Result};
+use crate::geometry::{Cuboid, Cylinder, Disk, Plane, Rectangle, Shape, Sphere, TriangleMesh};
+use crate::integrator::{Aov, AovVariable, CameraDirection, Integrator};
+use crate::math::Transform;
+use crate::sampling::{Distribution2D, IndependentSampler, Sampler};
+use crate::scene::{Instance, Scene};
+use glam::{UVec2, Vec3};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::rc::Rc;
+use std::sync::Arc;
+
+/// Largest accepted image side, in pixels.
+pub const MAX_IMAGE_SIDE: i64 = 1 << 15;
+
+/// Builds a scene from the root of a lightwave document.
+pub fn build(root: &Rc<Node>, path: &Path, options: &LoadOptions) -> Result<LoadedScene> {
+    let mut b = Builder { path: path.to_path_buf(), options: options.clone(), shapes: HashMap::new(), meshes: HashMap::new() };
+    b.root(root)
+}
+
+struct Builder {
+    path: PathBuf,
+    options: LoadOptions,
+    /// Shapes built so far, by node identity (a `<ref>`'d shape is built once).
+    shapes: HashMap<*const Node, Arc<Shape>>,
+    /// Meshes by file and smoothing, so a file named by many instances loads once.
+    meshes: HashMap<(PathBuf, bool), Arc<Shape>>,
+}
+
+fn expect_tag(node: &Node, tag: &str) -> Result<()> {
+    if node.tag != tag {
+        return Err(node.error(format!("expected <{tag}>, found <{}>", node.tag)));
+    }
+    Ok(())
+}
+
+fn unknown_type(node: &Node, known: &[&str]) -> Error {
+    let t = node.type_name.as_deref().unwrap_or("");
+    let hint = crate::io::suggest(t, known).map(|s| format!(" (did you mean `{s}`?)")).unwrap_or_default();
+    node.error(format!("unknown {} type `{t}`{hint}; known: {}", node.tag, known.join(", ")))
+}
+
+impl Builder {
+    fn root(&mut self, root: &Rc<Node>) -> Result<LoadedScene> {
+        match root.tag.as_str() {
+            "test" => {
+                if root.type_name.as_deref().is_some_and(|t| t != "image") {
+                    return Err(unknown_type(root, &["image"]));
+                }
+                let id = root.id.clone().unwrap_or_else(|| {
+                    self.path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()
+                });
+                let mae = root.float_or("mae", 0.1)? as f64;
+                let me = root.float_or("me", 2e-4)? as f64;
+                root.check_all_used()?;
+                let integrator = self.single_child(root, "integrator")?;
+                let mut loaded = self.integrator(&integrator)?;
+                loaded.test = Some(TestSpec { id, mae, me });
+                Ok(loaded)
+            }
+            "integrator" => self.integrator(root),
+            _ => Err(root.error(format!("expected <test> or <integrator> as the root element, found <{}>", root.tag))),
+        }
+    }
+
+    fn single_child(&self, node: &Node, tag: &str) -> Result<Rc<Node>> {
+        let mut found = node.children_tagged(tag);
+        let first = found.next().ok_or_else(|| node.error(format!("{} needs a <{tag}>", node.describe())))?;
+        if let Some(second) = found.next() {
+            return Err(second.error(format!("{} has more than one <{tag}>", node.describe())));
+        }
+        Ok(first.clone())
+    }
+
+    fn check_children(&self, node: &Node, allowed: &[&str]) -> Result<()> {
+        for c in &node.children {
+            if !allowed.contains(&c.tag.as_str()) {
+                return Err(c.error(format!("<{}> is not allowed inside {}", c.tag, node.describe())));
+            }
+        }
+        Ok(())
+    }
+
+    fn integrator(&mut self, node: &Rc<Node>) -> Result<LoadedScene> {
+        expect_tag(node, "integrator")?;
+        self.check_children(node, &["scene", "sampler"])?;
+        let integrator = match node.type_name.as_deref() {
+            Some("aov") => {
+                let name = node.string("variable").ok_or_else(|| node.error("aov integrator needs a `variable`"))?;
+                let variable = AovVariable::from_name(&name).ok_or_else(|| {
+                    node.error(format!("unknown aov variable `{name}`; known: {}", AovVariable::NAMES.join(", ")))
+                })?;
+                let scale = node.float_or("scale", 1.0)?;
+                if !(scale > 0.0) {
+                    return Err(node.error("aov `scale` must be positive"));
+                }
+                Integrator::Aov(Aov { variable, scale })
+            }
+            Some("camera") => Integrator::CameraDirection(CameraDirection),
+            Some(t @ ("direct" | "pathtracer" | "albedo" | "normals")) => {
+                return Err(node.error(format!("integrator `{t}` is not supported yet (supported: aov, camera)")));
+            }
+            _ => return Err(unknown_type(node, &["aov", "camera"])),
+        };
+        node.check_all_used()?;
+        let sampler_node = self.single_child(node, "sampler")?;
+        let sampler = self.sampler(&sampler_node)?;
+        let scene_node = self.single_child(node, "scene")?;
+        let scene = self.scene(&scene_node)?;
+        Ok(LoadedScene { scene, integrator, sampler, test: None, path: self.path.clone() })
+    }
+
+    fn sampler(&self, node: &Node) -> Result<Sampler> {
+        let sampler = match node.type_name.as_deref() {
+            Some("independent") => {
+                let count = node.int("count")?.unwrap_or(1);
+                if !(1..=1 << 24).contains(&count) {
+                    return Err(node.error(format!("sampler `count` must be between 1 and 16777216, got {count}")));
+                }
+                let seed = node.int("seed")?.unwrap_or(0);
+                Sampler::Independent(IndependentSampler::new(count as u32, seed as u64))
+            }
+            _ => return Err(unknown_type(node, &["independent"])),
+        };
+        node.check_all_used()?;
+        self.check_children(node, &[])?;
+        Ok(sampler)
+    }
+
+    fn scene(&mut self, node: &Node) -> Result<Scene> {
+        expect_tag(node, "scene")?;
+        node.check_all_used()?;
+        let mut camera = None;
+        let mut instances = Vec::new();
+        for child in &node.children {
+            match child.tag.as_str() {
+                "camera" => {
+                    if camera.is_some() {
+                        return Err(child.error("the scene has more than one <camera>"));
+                    }
+                    camera = Some(self.camera(child)?);
+                }
+                "instance" => instances.push(self.instance(child)?),
+                // Shapes defined at scene level (with an id) are for later <ref>s.
+                "shape" if child.id.is_some() => {}
+                "bsdf" | "texture" | "light" | "emission" => {
+                    return Err(child.error(format!("<{}> is not supported yet", child.tag)));
+                }
+                other => return Err(child.error(format!("<{other}> is not allowed inside <scene>"))),
+            }
+        }
+        let camera = camera.ok_or_else(|| node.error("the scene has no <camera>"))?;
+        Ok(Scene::new(instances, Some(camera), self.options.accel))
+    }
+
+    fn transform(&self, node: &Node) -> Result<Transform> {
+        expect_tag(node, "transform")?;
+        node.check_all_used()?;
+        let mut t = Transform::IDENTITY;
+        for step in &node.children {
+            let s = match step.tag.as_str() {
+                "translate" => {
+                    let v = match step.vec3("value")? {
+                        Some(v) => v,
+                        None => Vec3::new(step.float_or("x", 0.0)?, step.float_or("y", 0.0)?, step.float_or("z", 0.0)?),
+                    };
+                    Transform::translate(v)
+                }
+                "scale" => {
+                    let v = match step.vec3("value")? {
+                        Some(v) => v,
+                        None => Vec3::new(step.float_or("x", 1.0)?, step.float_or("y", 1.0)?, step.float_or("z", 1.0)?),
+                    };
+                    Transform::scale(v).ok_or_else(|| step.error(format!("scale by zero ({v})")))?
+                }
+                "rotate" => {
+                    let axis = step.vec3("axis")?.ok_or_else(|| step.error("<rotate> needs an `axis`"))?;
+                    let angle = step.float("angle")?.ok_or_else(|| step.error("<rotate> needs an `angle` in degrees"))?;
+                    Transform::rotate(axis, angle).ok_or_else(|| step.error("<rotate> axis is zero"))?
+                }
+                "lookat" => {
+                    let origin = step.vec3("origin")?.ok_or_else(|| step.error("<lookat> needs an `origin`"))?;
+                    let target = step.vec3("target")?.ok_or_else(|| step.error("<lookat> needs a `target`"))?;
+                    let up = step.vec3("up")?.unwrap_or(Vec3::Y);
+                    Transform::look_at(origin, target, up)
+                        .ok_or_else(|| step.error("<lookat>: origin equals target, or up is parallel to the view direction"))?
+                }
+                "matrix" => {
+                    let v = step.floats("value")?.ok_or_else(|| step.error("<matrix> needs a `value` with 16 numbers"))?;
+                    let arr: [f32; 16] = v
+                        .as_slice()
+                        .try_into()
+                        .map_err(|_| step.error(format!("<matrix> needs 16 numbers, got {}", v.len())))?;
+                    Transform::from_row_major(&arr).ok_or_else(|| step.error("<matrix> is singular"))?
+                }
+                other => return Err(step.error(format!("unknown transform step <{other}>; known: translate, scale, rotate, lookat, matrix"))),
+            };
+            step.check_all_used()?;
+            if !step.children.is_empty() {
+                return Err(step.children[0].error(format!("<{}> cannot have children", step.tag)));
+            }
+            t = t.then(&s);
+        }
+        Ok(t)
+    }
+
+    fn optional_transform(&self, node: &Node) -> Result<Transform> {
+        let mut t = Transform::IDENTITY;
+        let mut seen = false;
+        for c in node.children_tagged("transform") {
+            if seen {
+                return Err(c.error(format!("{} has more than one <transform>", node.describe())));
+            }
+            seen = true;
+            t = self.transform(c)?;
+        }
+        Ok(t)
+    }
+
+    fn resolution(&self, node: &Node) -> Result<UVec2> {
+        let w = node.int("width")?.unwrap_or(512);
+        let h = node.int("height")?.unwrap_or(512);
+        for (name, v) in [("width", w), ("height", h)] {
+            if !(1..=MAX_IMAGE_SIDE).contains(&v) {
+                return Err(node.error(format!("camera {name} must be between 1 and {MAX_IMAGE_SIDE}, got {v}")));
+            }
+        }
+        Ok(UVec2::new(w as u32, h as u32))
+    }
+
+    fn fov(&self, node: &Node, default: f32, max: f32) -> Result<f32> {
+        let fov = node.float_or("fov", default)?;
+        if !(fov > 0.0 && fov < max) {
+            return Err(node.error(format!("camera fov must be between 0 and {max} degrees, got {fov}")));
+        }
+        Ok(fov)
+    }
+
+    fn fov_axis(&self, node: &Node) -> Result<FovAxis> {
+        let name = node.string_or("fovAxis", "x");
+        FovAxis::from_name(&name).ok_or_else(|| node.error(format!("unknown fovAxis `{name}`; known: x, y, diagonal")))
+    }
+
+    fn camera(&self, node: &Node) -> Result<Camera> {
+        self.check_children(node, &["transform"])?;
+        let resolution = self.resolution(node)?;
+        let render_from_camera = self.optional_transform(node)?;
+        let camera = match node.type_name.as_deref() {
+            Some("perspective") => {
+                let fov = self.fov(node, 60.0, 180.0)?;
+                let axis = self.fov_axis(node)?;
+                Camera::Perspective(Perspective::new(resolution, fov, axis, render_from_camera))
+            }
+            Some("thinlens") => {
+                let fov = self.fov(node, 60.0, 180.0)?;
+                let axis = self.fov_axis(node)?;
+                let aperture_radius = node.float_or("apertureRadius", 0.0)?;
+                let focus_distance = node.float_or("focusDistance", 1.0)?;
+                if aperture_radius < 0.0 || !(focus_distance > 0.0) {
+                    return Err(node.error("thinlens needs apertureRadius >= 0 and focusDistance > 0"));
+                }
+                let aperture = self.aperture(node)?;
+                Camera::ThinLens(ThinLens {
+                    pinhole: Perspective::new(resolution, fov, axis, render_from_camera),
+                    aperture_radius,
+                    focus_distance,
+                    aperture,
+                })
+            }
+            Some("orthographic") => {
+                let size = node.float_or("size", 1.0)?;
+                if !(size > 0.0) {
+                    return Err(node.error("orthographic `size` must be positive"));
+                }
+                let axis = self.fov_axis(node)?;
+                Camera::Orthographic(Orthographic::new(resolution, size, axis, render_from_camera))
+            }
+            Some("fisheye") => {
+                let name = node.string_or("mapping", "equidistant");
+                let mapping = FisheyeMapping::from_name(&name).ok_or_else(|| {
+                    node.error(format!("unknown fisheye mapping `{name}`; known: {}", FisheyeMapping::NAMES.join(", ")))
+                })?;
+                let fov = node.float_or("fov", 180.0)?;
+                Camera::Fisheye(Fisheye::new(resolution, mapping, fov, render_from_camera).map_err(|m| node.error(m))?)
+            }
+            _ => return Err(unknown_type(node, &["perspective", "thinlens", "orthographic", "fisheye"])),
+        };
+        node.check_all_used()?;
+        Ok(camera)
+    }
+
+    fn aperture(&self, node: &Node) -> Result<Aperture> {
+        if let Some(file) = node.string("apertureImage") {
+            let path = resolve_path(&node.location.file, &file);
+            let img = crate::io::image::read_image(&path, Some(false)).map_err(|e| node.error(format!("aperture image: {e}")))?;
+            let values: Vec<f32> = img.pixels.iter().map(|p| (p.x + p.y + p.z) / 3.0).collect();
+            if !values.iter().any(|&v| v > 0.0) {
+                return Err(node.error(format!("aperture image {} is black everywhere", path.display())));
+            }
+            return Ok(Aperture::Image(Box::new(Distribution2D::new(&values, img.width as usize, img.height as usize))));
+        }
+        match node.int("blades")? {
+            None => Ok(Aperture::Disk),
+            Some(b) if (3..=64).contains(&b) => {
+                let rotation = node.float_or("bladeRotation", 0.0)?.to_radians();
+                Ok(Aperture::Polygon { blades: b as u32, rotation })
+            }
+            Some(b) => Err(node.error(format!("aperture `blades` must be between 3 and 64, got {b}"))),
+        }
+    }
+
+    fn instance(&mut self, node: &Node) -> Result<Instance> {
+        node.check_all_used()?;
+        self.check_children(node, &["shape", "transform", "bsdf", "emission"])?;
+        if let Some(c) = node.children.iter().find(|c| c.tag == "bsdf" || c.tag == "emission") {
+            return Err(c.error(format!("<{}> is not supported yet", c.tag)));
+        }
+        let shape_node = self.single_child(node, "shape")?;
+        let shape = self.shape(&shape_node)?;
+        let render_from_object = self.optional_transform(node)?;
+        Ok(Instance::new(shape, render_from_object))
+    }
+
+    fn shape(&mut self, node: &Rc<Node>) -> Result<Arc<Shape>> {
+        let key = Rc::as_ptr(node);
+        if let Some(s) = self.shapes.get(&key) {
+            return Ok(s.clone());
+        }
+        self.check_children(node, &[])?;
+        const KNOWN: &[&str] = &["sphere", "rectangle", "plane", "disk", "cube", "cylinder", "mesh"];
+        let shape = match node.type_name.as_deref() {
+            Some("sphere") => Arc::new(Shape::Sphere(Sphere)),
+            Some("rectangle") => Arc::new(Shape::Rectangle(Rectangle)),
+            Some("plane") => Arc::new(Shape::Plane(Plane)),
+            Some("disk") => Arc::new(Shape::Disk(Disk)),
+            Some("cube" | "box") => Arc::new(Shape::Cuboid(Cuboid)),
+            Some("cylinder") => Arc::new(Shape::Cylinder(Cylinder { caps: node.bool_or("caps", false)? })),
+            Some("mesh") => {
+                let file = node.string("filename").ok_or_else(|| node.error("<shape type=\"mesh\"> needs a `filename`"))?;
+                let smooth = node.bool_or("smooth", true)?;
+                let path = resolve_path(&node.location.file, &file);
+                let canonical = path.canonicalize().unwrap_or_else(|_| path.clone());
+                match self.meshes.get(&(canonical.clone(), smooth)) {
+                    Some(s) => s.clone(),
+                    None => {
+                        let data = crate::io::load_mesh(&path).map_err(|e| node.error(format!("cannot load mesh: {e}")))?;
+                        let mesh = TriangleMesh::new(data, smooth, self.options.accel)
+                            .map_err(|m| node.error(format!("{}: {m}", path.display())))?;
+                        let s = Arc::new(Shape::TriangleMesh(Arc::new(mesh)));
+                        self.meshes.insert((canonical, smooth), s.clone());
+                        s
+                    }
+                }
+            }
+            _ => return Err(unknown_type(node, KNOWN)),
+        };
+        node.check_all_used()?;
+        self.shapes.insert(key, shape.clone());
+        Ok(shape)
+    }
+}
+
+/// The accelerator to use when none is asked for.
+pub fn default_accel() -> AccelKind {
+    AccelKind::default()
+}

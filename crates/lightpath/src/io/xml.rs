@@ -1,0 +1,168 @@
+//! Reads an XML scene file into the property tree, resolving `<ref>` and `<include>`.
+//!
+//! Objects are elements (`<shape>`, `<camera>`, ...). Their attributes other than `type`,
+//! `id` and `name` are properties, and so are typed property elements
+//! (`<float name="fov" value="40"/>`). `<ref id="..."/>` stands for an object defined
+//! earlier with that id (the same node, so it is built once); `<include
+//! filename="..."/>` inserts the children of another file's root element.
+
+use super::props::{Node, Property};
+use crate::error::{Error, Location, Result};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::rc::Rc;
+
+/// Elements whose `name` + `value` attributes form a property of the parent.
+const PROPERTY_TAGS: &[&str] = &["integer", "float", "string", "boolean", "bool", "vector", "color", "point", "rgb"];
+
+struct Reader {
+    ids: HashMap<String, Rc<Node>>,
+    /// Files being read, to reject include cycles.
+    stack: Vec<PathBuf>,
+    /// `$name` substitutions.
+    defines: Vec<(String, String)>,
+}
+
+/// Parses `path` and returns its root element as a node.
+pub fn read_file(path: &Path, defines: &[(String, String)]) -> Result<Rc<Node>> {
+    let mut reader = Reader { ids: HashMap::new(), stack: Vec::new(), defines: defines.to_vec() };
+    let root = reader.read(path, None)?;
+    Ok(root)
+}
+
+/// Parses XML text as if it were the file `path` (relative paths resolve from there).
+pub fn read_str(text: &str, path: &Path, defines: &[(String, String)]) -> Result<Rc<Node>> {
+    let mut reader = Reader { ids: HashMap::new(), stack: Vec::new(), defines: defines.to_vec() };
+    reader.parse(text, path)
+}
+
+impl Reader {
+    fn read(&mut self, path: &Path, included_from: Option<&Location>) -> Result<Rc<Node>> {
+        let text = std::fs::read_to_string(path).map_err(|e| match included_from {
+            Some(loc) => Error::scene(loc.clone(), format!("cannot read included file {}: {e}", path.display())),
+            None => Error::io(path, e),
+        })?;
+        let canonical = path.canonicalize().unwrap_or_else(|_| path.to_path_buf());
+        if self.stack.contains(&canonical) {
+            let loc = included_from.cloned().unwrap_or_else(|| location(path, 0, 0));
+            return Err(Error::scene(loc, format!("{} includes itself", path.display())));
+        }
+        self.stack.push(canonical);
+        let node = self.parse(&text, path)?;
+        self.stack.pop();
+        Ok(node)
+    }
+
+    fn parse(&mut self, text: &str, path: &Path) -> Result<Rc<Node>> {
+        let doc = roxmltree::Document::parse(text).map_err(|e| {
+            let pos = e.pos();
+            Error::scene(location(path, pos.row, pos.col), format!("malformed XML: {e}"))
+        })?;
+        self.element(&doc, doc.root_element(), path)
+    }
+
+    fn substitute(&self, value: &str) -> String {
+        if !value.contains('$') {
+            return value.to_string();
+        }
+        let mut out = value.to_string();
+        // Longest names first, so `$spp2` is not replaced as `$spp` + "2".
+        let mut defines = self.defines.clone();
+        defines.sort_by_key(|(k, _)| std::cmp::Reverse(k.len()));
+        for (k, v) in &defines {
+            out = out.replace(&format!("${k}"), v);
+        }
+        out
+    }
+
+    fn element(&mut self, doc: &roxmltree::Document, el: roxmltree::Node, path: &Path) -> Result<Rc<Node>> {
+        let loc = node_location(doc, el, path);
+        let tag = el.tag_name().name();
+        let mut node = Node::new(tag, loc.clone());
+        for attr in el.attributes() {
+            let value = self.substitute(attr.value());
+            match attr.name() {
+                "type" => node.type_name = Some(value),
+                "id" => node.id = Some(value),
+                "name" => node.name = Some(value),
+                name => node.properties.push(Property {
+                    name: name.to_string(),
+                    value,
+                    location: attr_location(doc, &attr, path),
+                }),
+            }
+        }
+        for child in el.children() {
+            if child.is_text() {
+                if child.text().is_some_and(|t| !t.trim().is_empty()) {
+                    return Err(Error::scene(node_location(doc, child, path), "unexpected text in scene file"));
+                }
+                continue;
+            }
+            if !child.is_element() {
+                continue;
+            }
+            let ctag = child.tag_name().name();
+            let cloc = node_location(doc, child, path);
+            if PROPERTY_TAGS.contains(&ctag) {
+                let name = child
+                    .attribute("name")
+                    .ok_or_else(|| Error::scene(cloc.clone(), format!("<{ctag}> needs a `name` attribute")))?;
+                let value = child
+                    .attribute("value")
+                    .ok_or_else(|| Error::scene(cloc.clone(), format!("<{ctag} name=\"{name}\"> needs a `value` attribute")))?;
+                if let Some(a) = child.attributes().find(|a| a.name() != "name" && a.name() != "value") {
+                    return Err(Error::scene(attr_location(doc, &a, path), format!("unknown attribute `{}` on <{ctag}>", a.name())));
+                }
+                node.properties.push(Property { name: name.to_string(), value: self.substitute(value), location: cloc });
+            } else if ctag == "ref" {
+                let id = child.attribute("id").ok_or_else(|| Error::scene(cloc.clone(), "<ref> needs an `id` attribute"))?;
+                let target = self
+                    .ids
+                    .get(id)
+                    .ok_or_else(|| Error::scene(cloc.clone(), format!("<ref id=\"{id}\">: no object with this id is defined before")))?;
+                node.children.push(target.clone());
+            } else if ctag == "include" {
+                let file = child
+                    .attribute("filename")
+                    .ok_or_else(|| Error::scene(cloc.clone(), "<include> needs a `filename` attribute"))?;
+                let inc_path = resolve_path(path, &self.substitute(file));
+                let inc = self.read(&inc_path, Some(&cloc))?;
+                node.children.extend(inc.children.iter().cloned());
+                node.properties.extend(inc.properties.iter().cloned());
+            } else {
+                let c = self.element(doc, child, path)?;
+                node.children.push(c);
+            }
+        }
+        let node = Rc::new(node);
+        if let Some(id) = &node.id {
+            self.ids.insert(id.clone(), node.clone());
+        }
+        Ok(node)
+    }
+}
+
+/// A path written in a scene file, relative to that file's folder.
+pub fn resolve_path(scene_file: &Path, file: &str) -> PathBuf {
+    let p = Path::new(file);
+    if p.is_absolute() {
+        p.to_path_buf()
+    } else {
+        scene_file.parent().unwrap_or(Path::new(".")).join(p)
+    }
+}
+
+fn location(path: &Path, line: u32, column: u32) -> Location {
+    Location { file: path.to_path_buf(), line, column }
+}
+
+fn node_location(doc: &roxmltree::Document, node: roxmltree::Node, path: &Path) -> Location {
+    let pos = doc.text_pos_at(node.range().start);
+    location(path, pos.row, pos.col)
+}
+
+fn attr_location(doc: &roxmltree::Document, attr: &roxmltree::Attribute, path: &Path) -> Location {
+    let pos = doc.text_pos_at(attr.range().start);
+    location(path, pos.row, pos.col)
+}

@@ -1,0 +1,71 @@
+//! The independent sampler: uniform random numbers from PCG32, one stream per
+//! (pixel, sample index, seed).
+//!
+//! ```xml
+//! <sampler type="independent" count="64"/>
+//! ```
+
+use super::{mix_bits, Pcg32};
+use glam::{UVec2, Vec2};
+
+#[derive(Debug, Clone)]
+pub struct IndependentSampler {
+    pub samples_per_pixel: u32,
+    pub seed: u64,
+    rng: Pcg32,
+}
+
+impl IndependentSampler {
+    pub fn new(samples_per_pixel: u32, seed: u64) -> Self {
+        IndependentSampler {
+            samples_per_pixel,
+            seed,
+            rng: Pcg32::new(seed, 0),
+        }
+    }
+
+    /// Restarts the stream for sample `index` of `pixel`: the stream is chosen by the
+    /// pixel and seed, and the sample index skips far ahead in it, so no two
+    /// (pixel, sample) pairs share numbers.
+    #[inline]
+    pub fn start_pixel_sample(&mut self, pixel: UVec2, index: u32) {
+        let pixel_hash = mix_bits(((pixel.x as u64) << 32) ^ pixel.y as u64 ^ mix_bits(self.seed));
+        self.rng = Pcg32::new(pixel_hash, mix_bits(pixel_hash ^ self.seed.rotate_left(17)));
+        self.rng.advance((index as u64) << 16);
+    }
+
+    #[inline]
+    pub fn next_1d(&mut self) -> f32 {
+        self.rng.next_f32()
+    }
+
+    #[inline]
+    pub fn next_2d(&mut self) -> Vec2 {
+        let x = self.rng.next_f32();
+        let y = self.rng.next_f32();
+        Vec2::new(x, y)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pure_function_of_pixel_index_seed() {
+        let mut a = IndependentSampler::new(4, 9);
+        let mut b = IndependentSampler::new(4, 9);
+        b.start_pixel_sample(UVec2::new(1, 1), 0);
+        b.next_2d();
+        a.start_pixel_sample(UVec2::new(3, 5), 2);
+        b.start_pixel_sample(UVec2::new(3, 5), 2);
+        assert_eq!(a.next_2d(), b.next_2d());
+        a.start_pixel_sample(UVec2::new(3, 5), 3);
+        b.start_pixel_sample(UVec2::new(5, 3), 3);
+        assert_ne!(a.next_1d(), b.next_1d());
+        let mut c = IndependentSampler::new(4, 10);
+        c.start_pixel_sample(UVec2::new(3, 5), 3);
+        a.start_pixel_sample(UVec2::new(3, 5), 3);
+        assert_ne!(a.next_1d(), c.next_1d());
+    }
+}

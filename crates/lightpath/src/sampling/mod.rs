@@ -1,0 +1,81 @@
+//! Random numbers and warps: PCG32, the per-pixel seeded samplers, and the maps from the
+//! unit square to disks, polygons, spheres and hemispheres with their densities.
+
+mod distribution;
+mod independent;
+mod pcg32;
+pub mod warp;
+
+pub use distribution::{Distribution1D, Distribution2D};
+pub use independent::IndependentSampler;
+pub use pcg32::Pcg32;
+
+use glam::{UVec2, Vec2};
+
+/// A sampler: a stream of numbers in [0, 1) that is a pure function of
+/// (pixel, sample index, seed), so images are bit-identical for any thread count.
+///
+/// ```xml
+/// <sampler type="independent" count="64"/>
+/// ```
+#[derive(Debug, Clone)]
+pub enum Sampler {
+    Independent(IndependentSampler),
+}
+
+impl Sampler {
+    /// Samples per pixel.
+    pub fn samples_per_pixel(&self) -> u32 {
+        match self {
+            Sampler::Independent(s) => s.samples_per_pixel,
+        }
+    }
+
+    /// Positions the sampler at sample `index` of `pixel`.
+    #[inline]
+    pub fn start_pixel_sample(&mut self, pixel: UVec2, index: u32) {
+        match self {
+            Sampler::Independent(s) => s.start_pixel_sample(pixel, index),
+        }
+    }
+
+    #[inline]
+    pub fn next_1d(&mut self) -> f32 {
+        match self {
+            Sampler::Independent(s) => s.next_1d(),
+        }
+    }
+
+    #[inline]
+    pub fn next_2d(&mut self) -> Vec2 {
+        match self {
+            Sampler::Independent(s) => s.next_2d(),
+        }
+    }
+
+    /// A copy with another sample count (e.g. `--spp` overriding the scene).
+    pub fn with_samples_per_pixel(&self, spp: u32) -> Sampler {
+        match self {
+            Sampler::Independent(s) => Sampler::Independent(IndependentSampler::new(spp, s.seed)),
+        }
+    }
+
+    /// A copy with another seed.
+    pub fn with_seed(&self, seed: u64) -> Sampler {
+        match self {
+            Sampler::Independent(s) => Sampler::Independent(IndependentSampler::new(s.samples_per_pixel, seed)),
+        }
+    }
+}
+
+/// Mixes 64-bit values into a well-distributed hash (MurmurHash3's finaliser over a
+/// running combination), used to seed per-pixel streams.
+#[inline]
+pub fn mix_bits(mut v: u64) -> u64 {
+    v ^= v >> 31;
+    v = v.wrapping_mul(0x7fb5_d329_728e_a185);
+    v ^= v >> 27;
+    v = v.wrapping_mul(0x81da_def4_bc2d_d44d);
+    v ^= v >> 33;
+    v
+}
