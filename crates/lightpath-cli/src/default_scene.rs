@@ -7,5 +7,9 @@ use std::path::Path;
 pub const DEFAULT_SCENE: &str = include_str!("default_scene.xml");
 
 pub fn load(options: &LoadOptions) -> lightpath::Result<LoadedScene> {
-    io::load_scene_str(DEFAULT_SCENE, Path::new("<built-in default scene>.xml"), options)
+    io::load_scene_str(
+        DEFAULT_SCENE,
+        Path::new("<built-in default scene>.xml"),
+        options,
+    )
 }

@@ -10,7 +10,12 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
-#[command(name = "lightpath", version, about = "A physically based ray tracer", propagate_version = true)]
+#[command(
+    name = "lightpath",
+    version,
+    about = "A physically based ray tracer",
+    propagate_version = true
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -74,11 +79,17 @@ pub struct RenderOptions {
 impl RenderOptions {
     pub fn load_options(&self) -> Result<lightpath::io::LoadOptions> {
         let accel = lightpath::accel::AccelKind::from_name(&self.accel).ok_or_else(|| {
-            anyhow::anyhow!("unknown --accel `{}`; known: {}", self.accel, lightpath::accel::AccelKind::NAMES.join(", "))
+            anyhow::anyhow!(
+                "unknown --accel `{}`; known: {}",
+                self.accel,
+                lightpath::accel::AccelKind::NAMES.join(", ")
+            )
         })?;
         let mut defines = Vec::new();
         for d in &self.defines {
-            let (k, v) = d.split_once('=').ok_or_else(|| anyhow::anyhow!("-D expects NAME=VALUE, got `{d}`"))?;
+            let (k, v) = d
+                .split_once('=')
+                .ok_or_else(|| anyhow::anyhow!("-D expects NAME=VALUE, got `{d}`"))?;
             defines.push((k.to_string(), v.to_string()));
         }
         Ok(lightpath::io::LoadOptions { accel, defines })
@@ -90,13 +101,18 @@ impl RenderOptions {
             if n == 0 {
                 anyhow::bail!("--threads must be at least 1");
             }
-            rayon::ThreadPoolBuilder::new().num_threads(n).build_global()?;
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build_global()?;
         }
         Ok(())
     }
 
     /// The sampler after command-line overrides.
-    pub fn sampler(&self, s: &lightpath::sampling::Sampler) -> Result<lightpath::sampling::Sampler> {
+    pub fn sampler(
+        &self,
+        s: &lightpath::sampling::Sampler,
+    ) -> Result<lightpath::sampling::Sampler> {
         let mut s = s.clone();
         if let Some(spp) = self.spp {
             if spp == 0 {

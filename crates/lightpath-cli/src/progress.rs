@@ -12,9 +12,11 @@ pub fn bar(message: &str, quiet: bool) -> ProgressBar {
     }
     let bar = ProgressBar::new(STEPS);
     bar.set_style(
-        ProgressStyle::with_template("{msg} [{bar:40.cyan/blue}] {percent:>3}% {elapsed_precise} ETA {eta}")
-            .expect("valid template")
-            .progress_chars("=> "),
+        ProgressStyle::with_template(
+            "{msg} [{bar:40.cyan/blue}] {percent:>3}% {elapsed_precise} ETA {eta}",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
     );
     bar.set_message(message.to_string());
     bar

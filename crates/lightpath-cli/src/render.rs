@@ -21,7 +21,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
     args.options.init_threads()?;
     let ext = io::extension(&args.output);
     if ext != "png" && ext != "exr" {
-        anyhow::bail!("{}: unsupported output format `.{ext}` (use .png or .exr)", args.output.display());
+        anyhow::bail!(
+            "{}: unsupported output format `.{ext}` (use .png or .exr)",
+            args.output.display()
+        );
     }
     let load = args.options.load_options()?;
     let loaded = match &args.scene {
@@ -37,25 +40,49 @@ pub fn run(args: RenderArgs) -> Result<()> {
             stats.samples as f64 / stats.seconds.max(1e-9) / 1e6
         );
         if stats.non_finite_samples > 0 {
-            eprintln!("warning: {} NaN/infinite samples were discarded", stats.non_finite_samples);
+            eprintln!(
+                "warning: {} NaN/infinite samples were discarded",
+                stats.non_finite_samples
+            );
         }
     }
     Ok(())
 }
 
 /// Renders a loaded scene and writes it to `output` (atomically).
-pub fn render_to(loaded: &LoadedScene, output: &Path, options: &RenderOptions) -> Result<RenderStats> {
+pub fn render_to(
+    loaded: &LoadedScene,
+    output: &Path,
+    options: &RenderOptions,
+) -> Result<RenderStats> {
     let (image, stats) = render_image(loaded, options)?;
-    io::image::write_image(output, &image).with_context(|| format!("writing {}", output.display()))?;
+    io::image::write_image(output, &image)
+        .with_context(|| format!("writing {}", output.display()))?;
     Ok(stats)
 }
 
-pub fn render_image(loaded: &LoadedScene, options: &RenderOptions) -> Result<(lightpath::film::Image, RenderStats)> {
-    let camera = loaded.scene.camera.as_ref().context("the scene has no camera")?;
+pub fn render_image(
+    loaded: &LoadedScene,
+    options: &RenderOptions,
+) -> Result<(lightpath::film::Image, RenderStats)> {
+    let camera = loaded
+        .scene
+        .camera
+        .as_ref()
+        .context("the scene has no camera")?;
     let sampler = options.sampler(&loaded.sampler)?;
-    let name = loaded.path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = loaded
+        .path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
     let bar = progress::bar(&name, options.quiet);
-    let renderer = Renderer { scene: &loaded.scene, camera, integrator: &loaded.integrator, sampler: &sampler };
+    let renderer = Renderer {
+        scene: &loaded.scene,
+        camera,
+        integrator: &loaded.integrator,
+        sampler: &sampler,
+    };
     let result = renderer.render(&progress::callback(&bar));
     bar.finish_and_clear();
     Ok(result?)

@@ -44,7 +44,8 @@ fn run_one(file: &Path, args: &TestArgs) -> Result<std::result::Result<String, S
     let loaded = io::load_scene(file, &args.options.load_options()?)?;
     let spec = loaded.test.clone().context("not a <test> scene")?;
     let (image, stats) = render::render_image(&loaded, &args.options)?;
-    std::fs::create_dir_all(&args.out_dir).with_context(|| format!("creating {}", args.out_dir.display()))?;
+    std::fs::create_dir_all(&args.out_dir)
+        .with_context(|| format!("creating {}", args.out_dir.display()))?;
     io::image::write_image(&args.out_dir.join(format!("{}.exr", spec.id)), &image)?;
     let ref_path = file.with_file_name(format!("{}_ref.exr", spec.id));
     let reference = read_image(&ref_path, None)?;
@@ -54,7 +55,10 @@ fn run_one(file: &Path, args: &TestArgs) -> Result<std::result::Result<String, S
             image.width, image.height, reference.width, reference.height
         )));
     };
-    let detail = format!("mae {:.3e} (<= {:.1e}), me {:.3e} (<= {:.1e}), {:.2} s", e.mae, spec.mae, e.me, spec.me, stats.seconds);
+    let detail = format!(
+        "mae {:.3e} (<= {:.1e}), me {:.3e} (<= {:.1e}), {:.2} s",
+        e.mae, spec.mae, e.me, spec.me, stats.seconds
+    );
     if e.non_finite > 0 {
         return Ok(Err(format!("{} pixels are NaN or infinite", e.non_finite)));
     }

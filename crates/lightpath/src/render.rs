@@ -42,7 +42,10 @@ impl Renderer<'_> {
     pub fn render(&self, progress: &(dyn Fn(f64) + Sync)) -> Result<(Image, RenderStats)> {
         let res = self.camera.resolution();
         if res.x == 0 || res.y == 0 {
-            return Err(Error::Invalid(format!("image size {}x{} is empty", res.x, res.y)));
+            return Err(Error::Invalid(format!(
+                "image size {}x{} is empty",
+                res.x, res.y
+            )));
         }
         let start = Instant::now();
         let tiles_x = res.x.div_ceil(TILE_SIZE);
@@ -92,7 +95,10 @@ impl Renderer<'_> {
                     let film = Vec2::new(x as f32, y as f32) + sampler.next_2d();
                     let lens = sampler.next_2d();
                     let value = match self.camera.generate_ray(&CameraSample { film, lens }) {
-                        Some(ray) => self.integrator.li(self.scene, &ray, &mut sampler, &mut ray_stats),
+                        Some(ray) => {
+                            self.integrator
+                                .li(self.scene, &ray, &mut sampler, &mut ray_stats)
+                        }
                         None => self.integrator.no_ray_value(),
                     };
                     if value.is_finite() {

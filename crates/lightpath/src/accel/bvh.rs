@@ -37,7 +37,10 @@ impl BvhNode {
 
     #[inline]
     pub fn bounds(&self) -> Bounds3 {
-        Bounds3 { min: Vec3::from_array(self.min), max: Vec3::from_array(self.max) }
+        Bounds3 {
+            min: Vec3::from_array(self.min),
+            max: Vec3::from_array(self.max),
+        }
     }
 
     /// Slab test; the entry distance or `None`.
@@ -74,9 +77,17 @@ impl Default for BuildSettings {
 
 impl BuildSettings {
     /// Fewer bins: faster builds, slightly worse trees.
-    pub const FAST: BuildSettings = BuildSettings { bins: 8, max_leaf_size: 8, traversal_cost: 1.0 };
+    pub const FAST: BuildSettings = BuildSettings {
+        bins: 8,
+        max_leaf_size: 8,
+        traversal_cost: 1.0,
+    };
     /// The default.
-    pub const QUALITY: BuildSettings = BuildSettings { bins: 32, max_leaf_size: 8, traversal_cost: 1.0 };
+    pub const QUALITY: BuildSettings = BuildSettings {
+        bins: 32,
+        max_leaf_size: 8,
+        traversal_cost: 1.0,
+    };
 }
 
 /// Build statistics.
@@ -102,8 +113,15 @@ pub struct Bvh {
 
 /// A node of the build tree before flattening.
 enum BuildNode {
-    Leaf { bounds: Bounds3, first: usize, count: usize },
-    Inner { bounds: Bounds3, children: Box<[BuildNode; 2]> },
+    Leaf {
+        bounds: Bounds3,
+        first: usize,
+        count: usize,
+    },
+    Inner {
+        bounds: Bounds3,
+        children: Box<[BuildNode; 2]>,
+    },
 }
 
 impl BuildNode {
@@ -144,11 +162,19 @@ impl Builder<'_> {
         }
         let n = indices.len();
         if n == 1 {
-            return BuildNode::Leaf { bounds, first: offset, count: n };
+            return BuildNode::Leaf {
+                bounds,
+                first: offset,
+                count: n,
+            };
         }
         let leaf_cost = n as f32;
         // Past MEDIAN_DEPTH, split at the median so the depth stays below STACK_SIZE.
-        let split = if depth < MEDIAN_DEPTH { self.find_split(indices, &bounds, &cbounds) } else { None };
+        let split = if depth < MEDIAN_DEPTH {
+            self.find_split(indices, &bounds, &cbounds)
+        } else {
+            None
+        };
         let mid = match split {
             Some((axis, pos, cost)) if cost < leaf_cost || n > self.settings.max_leaf_size => {
                 // Partition by the chosen bin boundary.
@@ -158,16 +184,27 @@ impl Builder<'_> {
                 }
                 mid
             }
-            Some(_) => return BuildNode::Leaf { bounds, first: offset, count: n },
+            Some(_) => {
+                return BuildNode::Leaf {
+                    bounds,
+                    first: offset,
+                    count: n,
+                }
+            }
             None if n <= self.settings.max_leaf_size => {
-                return BuildNode::Leaf { bounds, first: offset, count: n };
+                return BuildNode::Leaf {
+                    bounds,
+                    first: offset,
+                    count: n,
+                };
             }
             // All centroids coincide (or the tree is too deep): split at the median.
             None => {
                 if depth >= MEDIAN_DEPTH {
                     let axis = cbounds.max_extent();
                     indices.select_nth_unstable_by(n / 2, |&a, &b| {
-                        self.centroids[a as usize][axis].total_cmp(&self.centroids[b as usize][axis])
+                        self.centroids[a as usize][axis]
+                            .total_cmp(&self.centroids[b as usize][axis])
                     });
                 }
                 n / 2
@@ -175,26 +212,46 @@ impl Builder<'_> {
         };
         let (left, right) = indices.split_at_mut(mid);
         let (l, r) = if n > PARALLEL_THRESHOLD {
-            rayon::join(|| self.build(left, offset, depth + 1), || self.build(right, offset + mid, depth + 1))
+            rayon::join(
+                || self.build(left, offset, depth + 1),
+                || self.build(right, offset + mid, depth + 1),
+            )
         } else {
-            (self.build(left, offset, depth + 1), self.build(right, offset + mid, depth + 1))
+            (
+                self.build(left, offset, depth + 1),
+                self.build(right, offset + mid, depth + 1),
+            )
         };
-        BuildNode::Inner { bounds, children: Box::new([l, r]) }
+        BuildNode::Inner {
+            bounds,
+            children: Box::new([l, r]),
+        }
     }
 
     /// The best binned SAH split: (axis, split position, cost relative to a leaf).
-    fn find_split(&self, indices: &[u32], bounds: &Bounds3, cbounds: &Bounds3) -> Option<(usize, f32, f32)> {
+    fn find_split(
+        &self,
+        indices: &[u32],
+        bounds: &Bounds3,
+        cbounds: &Bounds3,
+    ) -> Option<(usize, f32, f32)> {
         let nb = self.settings.bins;
         let mut best: Option<(usize, f32, f32)> = None;
         let area = bounds.surface_area().max(f32::MIN_POSITIVE);
         let extent = cbounds.diagonal();
         for axis in 0..3 {
-            if !(extent[axis] > 0.0) {
+            if extent[axis] <= 0.0 {
                 continue;
             }
             let lo = cbounds.min[axis];
             let scale = nb as f32 / extent[axis];
-            let mut bins = vec![Bin { bounds: Bounds3::EMPTY, count: 0 }; nb];
+            let mut bins = vec![
+                Bin {
+                    bounds: Bounds3::EMPTY,
+                    count: 0
+                };
+                nb
+            ];
             for &i in indices {
                 let b = (((self.centroids[i as usize][axis] - lo) * scale) as usize).min(nb - 1);
                 bins[b].count += 1;
@@ -218,7 +275,9 @@ impl Builder<'_> {
                     continue;
                 }
                 let cost = self.settings.traversal_cost
-                    + (acc.surface_area() * cnt as f32 + right_area[b + 1] * right_count[b + 1] as f32) / area;
+                    + (acc.surface_area() * cnt as f32
+                        + right_area[b + 1] * right_count[b + 1] as f32)
+                        / area;
                 if best.is_none_or(|(_, _, c)| cost < c) {
                     best = Some((axis, lo + (b + 1) as f32 / scale, cost));
                 }
@@ -252,7 +311,11 @@ impl Bvh {
         let mut prim_indices: Vec<u32> = (0..boxes.len() as u32).collect();
         let mut nodes = Vec::new();
         if !boxes.is_empty() {
-            let builder = Builder { boxes, centroids: &centroids, settings: *settings };
+            let builder = Builder {
+                boxes,
+                centroids: &centroids,
+                settings: *settings,
+            };
             let root = builder.build(&mut prim_indices, 0, 0);
             nodes.reserve(2 * boxes.len());
             nodes.push(placeholder());
@@ -265,7 +328,11 @@ impl Bvh {
                 count: 0,
             });
         }
-        let mut bvh = Bvh { nodes, prim_indices, stats: BvhStats::default() };
+        let mut bvh = Bvh {
+            nodes,
+            prim_indices,
+            stats: BvhStats::default(),
+        };
         bvh.stats = bvh.compute_stats(start.elapsed().as_secs_f64());
         bvh
     }
@@ -311,11 +378,19 @@ impl Bvh {
     /// entry distance is kept on the stack and the child is skipped on pop if a closer
     /// hit has been found meanwhile.
     #[inline]
-    pub fn intersect<F: FnMut(u32, &mut f32) -> bool>(&self, ray: &Ray, stats: &mut RayStats, mut hit: F) -> bool {
+    pub fn intersect<F: FnMut(u32, &mut f32) -> bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
+        mut hit: F,
+    ) -> bool {
         let inv_dir = ray.direction.recip();
         let origin = ray.origin;
         let mut t_max = ray.t_max;
         let mut any = false;
+        if self.prim_indices.is_empty() {
+            return false;
+        }
         let mut stack: [(u32, f32); STACK_SIZE] = [(0, 0.0); STACK_SIZE];
         let mut sp = 0usize;
         stats.nodes_visited += 1;
@@ -338,7 +413,11 @@ impl Bvh {
                 let hr = self.nodes[l as usize + 1].hit(origin, inv_dir, ray.t_min, t_max);
                 match (hl, hr) {
                     (Some(dl), Some(dr)) => {
-                        let (near, far, dfar) = if dl <= dr { (l, l + 1, dr) } else { (l + 1, l, dl) };
+                        let (near, far, dfar) = if dl <= dr {
+                            (l, l + 1, dr)
+                        } else {
+                            (l + 1, l, dl)
+                        };
                         stack[sp] = (far, dfar);
                         sp += 1;
                         current = near;
@@ -372,12 +451,23 @@ impl Bvh {
 
     /// Any hit: returns at the first primitive that blocks the ray.
     #[inline]
-    pub fn occluded<F: FnMut(u32) -> bool>(&self, ray: &Ray, stats: &mut RayStats, mut blocks: F) -> bool {
+    pub fn occluded<F: FnMut(u32) -> bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
+        mut blocks: F,
+    ) -> bool {
         let inv_dir = ray.direction.recip();
+        if self.prim_indices.is_empty() {
+            return false;
+        }
         let mut stack = [0u32; STACK_SIZE];
         let mut sp = 0usize;
         stats.nodes_visited += 1;
-        if self.nodes[0].hit(ray.origin, inv_dir, ray.t_min, ray.t_max).is_none() {
+        if self.nodes[0]
+            .hit(ray.origin, inv_dir, ray.t_min, ray.t_max)
+            .is_none()
+        {
             return false;
         }
         let mut current = 0u32;
@@ -394,8 +484,12 @@ impl Bvh {
             } else {
                 let l = node.left_or_first;
                 stats.nodes_visited += 2;
-                let hl = self.nodes[l as usize].hit(ray.origin, inv_dir, ray.t_min, ray.t_max).is_some();
-                let hr = self.nodes[l as usize + 1].hit(ray.origin, inv_dir, ray.t_min, ray.t_max).is_some();
+                let hl = self.nodes[l as usize]
+                    .hit(ray.origin, inv_dir, ray.t_min, ray.t_max)
+                    .is_some();
+                let hr = self.nodes[l as usize + 1]
+                    .hit(ray.origin, inv_dir, ray.t_min, ray.t_max)
+                    .is_some();
                 match (hl, hr) {
                     (true, true) => {
                         stack[sp] = l + 1;
@@ -440,14 +534,14 @@ impl Bvh {
                     }
                     seen[p] = true;
                     let b = boxes[p];
-                    if !b.is_empty() && !(nb.contains(b.min) && nb.contains(b.max)) {
+                    if !(b.is_empty() || nb.contains(b.min) && nb.contains(b.max)) {
                         return Err(format!("primitive {p} outside leaf {i}"));
                     }
                 }
             } else if !boxes.is_empty() {
                 for c in [n.left_or_first as usize, n.left_or_first as usize + 1] {
                     let cb = self.nodes[c].bounds();
-                    if !cb.is_empty() && !(nb.contains(cb.min) && nb.contains(cb.max)) {
+                    if !(cb.is_empty() || nb.contains(cb.min) && nb.contains(cb.max)) {
                         return Err(format!("child {c} outside parent {i}"));
                     }
                     stack.push(c);
@@ -462,7 +556,12 @@ impl Bvh {
 }
 
 fn placeholder() -> BvhNode {
-    BvhNode { min: [0.0; 3], left_or_first: 0, max: [0.0; 3], count: 0 }
+    BvhNode {
+        min: [0.0; 3],
+        left_or_first: 0,
+        max: [0.0; 3],
+        count: 0,
+    }
 }
 
 /// Writes `node` at `index` and its children (as adjacent pairs) after the current end.
@@ -481,7 +580,12 @@ fn flatten(node: &BuildNode, index: usize, nodes: &mut Vec<BvhNode>) {
             let left = nodes.len();
             nodes.push(placeholder());
             nodes.push(placeholder());
-            nodes[index] = BvhNode { min: b.min.to_array(), left_or_first: left as u32, max: b.max.to_array(), count: 0 };
+            nodes[index] = BvhNode {
+                min: b.min.to_array(),
+                left_or_first: left as u32,
+                max: b.max.to_array(),
+                count: 0,
+            };
             flatten(&children[0], left, nodes);
             flatten(&children[1], left + 1, nodes);
         }
@@ -508,13 +612,18 @@ mod tests {
     fn closest(accel: &crate::accel::Accel, boxes: &[Bounds3], ray: &Ray) -> Option<(u32, f32)> {
         let mut best = None;
         let mut stats = RayStats::default();
-        accel.intersect(ray, &mut stats, |i, t_max| match boxes[i as usize].intersect_ray(&Ray { t_max: *t_max, ..*ray }) {
-            Some((t, _)) if t < *t_max => {
-                *t_max = t;
-                best = Some((i, t));
-                true
+        accel.intersect(ray, &mut stats, |i, t_max| {
+            match boxes[i as usize].intersect_ray(&Ray {
+                t_max: *t_max,
+                ..*ray
+            }) {
+                Some((t, _)) if t < *t_max => {
+                    *t_max = t;
+                    best = Some((i, t));
+                    true
+                }
+                _ => false,
             }
-            _ => false,
         });
         best
     }
@@ -529,14 +638,21 @@ mod tests {
             let list = crate::accel::Accel::List(crate::accel::ListAccel::new(&boxes));
             let mut rng = Pcg32::new(99, 3);
             for _ in 0..500 {
-                let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 14.0 - Vec3::splat(2.0);
-                let d = Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, rng.next_f32() - 0.5);
+                let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 14.0
+                    - Vec3::splat(2.0);
+                let d = Vec3::new(
+                    rng.next_f32() - 0.5,
+                    rng.next_f32() - 0.5,
+                    rng.next_f32() - 0.5,
+                );
                 let ray = Ray::new(o, d);
                 let a = closest(&bvh, &boxes, &ray).map(|(_, t)| t);
                 let b = closest(&list, &boxes, &ray).map(|(_, t)| t);
                 assert_eq!(a, b);
                 let mut s = RayStats::default();
-                let occ = bvh.occluded(&ray, &mut s, |i| boxes[i as usize].intersect_ray(&ray).is_some());
+                let occ = bvh.occluded(&ray, &mut s, |i| {
+                    boxes[i as usize].intersect_ray(&ray).is_some()
+                });
                 assert_eq!(occ, b.is_some());
             }
         }
@@ -546,12 +662,25 @@ mod tests {
     fn degenerate_inputs() {
         // Identical boxes (all centroids equal), flat boxes, empty boxes, no boxes.
         let same = vec![Bounds3::new(Vec3::ZERO, Vec3::ONE); 100];
-        Bvh::build(&same, &BuildSettings::default()).validate(&same).unwrap();
-        let flat: Vec<_> = (0..50).map(|i| Bounds3::new(Vec3::new(i as f32, 0.0, 0.0), Vec3::new(i as f32 + 1.0, 1.0, 0.0))).collect();
-        Bvh::build(&flat, &BuildSettings::default()).validate(&flat).unwrap();
+        Bvh::build(&same, &BuildSettings::default())
+            .validate(&same)
+            .unwrap();
+        let flat: Vec<_> = (0..50)
+            .map(|i| {
+                Bounds3::new(
+                    Vec3::new(i as f32, 0.0, 0.0),
+                    Vec3::new(i as f32 + 1.0, 1.0, 0.0),
+                )
+            })
+            .collect();
+        Bvh::build(&flat, &BuildSettings::default())
+            .validate(&flat)
+            .unwrap();
         let mut with_empty = random_boxes(30, 4);
         with_empty[3] = Bounds3::EMPTY;
-        Bvh::build(&with_empty, &BuildSettings::default()).validate(&with_empty).unwrap();
+        Bvh::build(&with_empty, &BuildSettings::default())
+            .validate(&with_empty)
+            .unwrap();
         let none = Bvh::build(&[], &BuildSettings::default());
         let mut s = RayStats::default();
         assert!(!none.intersect(&Ray::new(Vec3::ZERO, Vec3::X), &mut s, |_, _| true));

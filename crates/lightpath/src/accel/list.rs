@@ -13,7 +13,10 @@ pub struct ListAccel {
 impl ListAccel {
     pub fn new(bounds: &[Bounds3]) -> Self {
         let total = bounds.iter().fold(Bounds3::EMPTY, |acc, b| acc.union(b));
-        ListAccel { boxes: bounds.to_vec(), bounds: total }
+        ListAccel {
+            boxes: bounds.to_vec(),
+            bounds: total,
+        }
     }
 
     pub fn bounds(&self) -> Bounds3 {
@@ -25,7 +28,12 @@ impl ListAccel {
     }
 
     #[inline]
-    pub fn intersect<F: FnMut(u32, &mut f32) -> bool>(&self, ray: &Ray, stats: &mut RayStats, mut hit: F) -> bool {
+    pub fn intersect<F: FnMut(u32, &mut f32) -> bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
+        mut hit: F,
+    ) -> bool {
         let mut t_max = ray.t_max;
         let mut any = false;
         for i in 0..self.boxes.len() as u32 {
@@ -36,7 +44,12 @@ impl ListAccel {
     }
 
     #[inline]
-    pub fn occluded<F: FnMut(u32) -> bool>(&self, _ray: &Ray, stats: &mut RayStats, mut blocks: F) -> bool {
+    pub fn occluded<F: FnMut(u32) -> bool>(
+        &self,
+        _ray: &Ray,
+        stats: &mut RayStats,
+        mut blocks: F,
+    ) -> bool {
         for i in 0..self.boxes.len() as u32 {
             stats.prims_tested += 1;
             if blocks(i) {

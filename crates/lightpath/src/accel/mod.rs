@@ -72,7 +72,12 @@ impl Accel {
     /// Closest hit: `hit(prim, &mut t_max)` returns true when it found a closer hit and
     /// lowered `t_max`. Returns whether anything was hit.
     #[inline]
-    pub fn intersect<F: FnMut(u32, &mut f32) -> bool>(&self, ray: &Ray, stats: &mut RayStats, hit: F) -> bool {
+    pub fn intersect<F: FnMut(u32, &mut f32) -> bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
+        hit: F,
+    ) -> bool {
         match self {
             Accel::List(a) => a.intersect(ray, stats, hit),
             Accel::Bvh(a) => a.intersect(ray, stats, hit),
@@ -81,7 +86,12 @@ impl Accel {
 
     /// Any hit: stops at the first primitive for which `blocks(prim)` is true.
     #[inline]
-    pub fn occluded<F: FnMut(u32) -> bool>(&self, ray: &Ray, stats: &mut RayStats, blocks: F) -> bool {
+    pub fn occluded<F: FnMut(u32) -> bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
+        blocks: F,
+    ) -> bool {
         match self {
             Accel::List(a) => a.occluded(ray, stats, blocks),
             Accel::Bvh(a) => a.occluded(ray, stats, blocks),

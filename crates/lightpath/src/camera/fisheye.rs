@@ -13,7 +13,7 @@
 //! </camera>
 //! ```
 
-use super::{CameraSample, normalized_film};
+use super::{normalized_film, CameraSample};
 use crate::math::{Ray, Transform};
 use glam::{UVec2, Vec2, Vec3};
 
@@ -31,7 +31,8 @@ pub enum FisheyeMapping {
 }
 
 impl FisheyeMapping {
-    pub const NAMES: &'static [&'static str] = &["equidistant", "equisolid", "orthographic", "stereographic"];
+    pub const NAMES: &'static [&'static str] =
+        &["equidistant", "equisolid", "orthographic", "stereographic"];
 
     pub fn from_name(name: &str) -> Option<FisheyeMapping> {
         match name {
@@ -86,12 +87,26 @@ pub struct Fisheye {
 
 impl Fisheye {
     /// A fisheye camera; `Err` if the field of view is out of the mapping's range.
-    pub fn new(resolution: UVec2, mapping: FisheyeMapping, fov_degrees: f32, render_from_camera: Transform) -> Result<Self, String> {
+    pub fn new(
+        resolution: UVec2,
+        mapping: FisheyeMapping,
+        fov_degrees: f32,
+        render_from_camera: Transform,
+    ) -> Result<Self, String> {
         if !(fov_degrees > 0.0 && fov_degrees <= mapping.max_fov()) {
-            return Err(format!("fisheye fov {fov_degrees} is outside (0, {}] for this mapping", mapping.max_fov()));
+            return Err(format!(
+                "fisheye fov {fov_degrees} is outside (0, {}] for this mapping",
+                mapping.max_fov()
+            ));
         }
         let radius_max = mapping.radius(fov_degrees.to_radians() * 0.5);
-        Ok(Fisheye { resolution, render_from_camera, mapping, fov_degrees, radius_max })
+        Ok(Fisheye {
+            resolution,
+            render_from_camera,
+            mapping,
+            fov_degrees,
+            radius_max,
+        })
     }
 
     /// The camera-space unit direction through a film point, or `None` outside the image
@@ -106,13 +121,20 @@ impl Fisheye {
         }
         let theta = self.mapping.angle(r * self.radius_max);
         let (sin_t, cos_t) = theta.sin_cos();
-        let (cos_p, sin_p) = if r > 0.0 { (n.x / r, n.y / r) } else { (1.0, 0.0) };
+        let (cos_p, sin_p) = if r > 0.0 {
+            (n.x / r, n.y / r)
+        } else {
+            (1.0, 0.0)
+        };
         Some(Vec3::new(sin_t * cos_p, sin_t * sin_p, cos_t))
     }
 
     pub fn generate_ray(&self, sample: &CameraSample) -> Option<Ray> {
         let d = self.camera_direction(sample.film)?;
-        Some(Ray::new(self.render_from_camera.point(Vec3::ZERO), self.render_from_camera.vector(d).normalize()))
+        Some(Ray::new(
+            self.render_from_camera.point(Vec3::ZERO),
+            self.render_from_camera.vector(d).normalize(),
+        ))
     }
 }
 
@@ -126,16 +148,29 @@ mod tests {
 
     #[test]
     fn centre_edge_and_outside() {
-        for &m in &[FisheyeMapping::Equidistant, FisheyeMapping::Equisolid, FisheyeMapping::Orthographic, FisheyeMapping::Stereographic] {
+        for &m in &[
+            FisheyeMapping::Equidistant,
+            FisheyeMapping::Equisolid,
+            FisheyeMapping::Orthographic,
+            FisheyeMapping::Stereographic,
+        ] {
             let cam = Fisheye::new(UVec2::new(300, 200), m, 180.0, Transform::IDENTITY).unwrap();
             assert!((at(&cam, 150.0, 100.0).unwrap() - Vec3::Z).length() < 1e-6);
             // The circle touches the top edge: straight "up" (-y), 90° off axis.
             let top = at(&cam, 150.0, 0.0).unwrap();
-            assert!((top.angle_between(Vec3::Z).to_degrees() - 90.0).abs() < 1e-3, "{m:?}");
+            assert!(
+                (top.angle_between(Vec3::Z).to_degrees() - 90.0).abs() < 1e-3,
+                "{m:?}"
+            );
             assert!(top.y < -0.99);
             // Corners are outside the image circle.
             assert!(at(&cam, 0.0, 0.0).is_none());
-            assert!(cam.generate_ray(&CameraSample { film: Vec2::new(299.0, 1.0), lens: Vec2::ZERO }).is_none());
+            assert!(cam
+                .generate_ray(&CameraSample {
+                    film: Vec2::new(299.0, 1.0),
+                    lens: Vec2::ZERO
+                })
+                .is_none());
         }
     }
 
@@ -144,23 +179,47 @@ mod tests {
         // Half way to the edge of a 180° circle.
         let expected = [
             (FisheyeMapping::Equidistant, 45.0f32),
-            (FisheyeMapping::Equisolid, 2.0 * (0.5 * 2.0 * 45f32.to_radians().sin() / 2.0).asin().to_degrees()),
+            (
+                FisheyeMapping::Equisolid,
+                2.0 * (0.5 * 2.0 * 45f32.to_radians().sin() / 2.0)
+                    .asin()
+                    .to_degrees(),
+            ),
             (FisheyeMapping::Orthographic, 30.0),
-            (FisheyeMapping::Stereographic, 2.0 * (0.5f32).atan().to_degrees()),
+            (
+                FisheyeMapping::Stereographic,
+                2.0 * (0.5f32).atan().to_degrees(),
+            ),
         ];
         for (m, deg) in expected {
             let cam = Fisheye::new(UVec2::new(200, 200), m, 180.0, Transform::IDENTITY).unwrap();
             let d = at(&cam, 150.0, 100.0).unwrap();
-            assert!((d.angle_between(Vec3::Z).to_degrees() - deg).abs() < 1e-3, "{m:?}: {}", d.angle_between(Vec3::Z).to_degrees());
+            assert!(
+                (d.angle_between(Vec3::Z).to_degrees() - deg).abs() < 1e-3,
+                "{m:?}: {}",
+                d.angle_between(Vec3::Z).to_degrees()
+            );
             assert!(d.x > 0.0 && d.y.abs() < 1e-6);
         }
     }
 
     #[test]
     fn full_sphere_sees_behind() {
-        let cam = Fisheye::new(UVec2::new(200, 200), FisheyeMapping::Equidistant, 360.0, Transform::IDENTITY).unwrap();
+        let cam = Fisheye::new(
+            UVec2::new(200, 200),
+            FisheyeMapping::Equidistant,
+            360.0,
+            Transform::IDENTITY,
+        )
+        .unwrap();
         let edge = at(&cam, 200.0, 100.0).unwrap();
         assert!((edge - (-Vec3::Z)).length() < 1e-3);
-        assert!(Fisheye::new(UVec2::new(2, 2), FisheyeMapping::Orthographic, 200.0, Transform::IDENTITY).is_err());
+        assert!(Fisheye::new(
+            UVec2::new(2, 2),
+            FisheyeMapping::Orthographic,
+            200.0,
+            Transform::IDENTITY
+        )
+        .is_err());
     }
 }

@@ -107,7 +107,10 @@ impl Camera {
 /// Raster position to normalised film coordinates in [-1, 1]².
 #[inline]
 pub(crate) fn normalized_film(film: Vec2, resolution: UVec2) -> Vec2 {
-    Vec2::new(2.0 * film.x / resolution.x as f32 - 1.0, 2.0 * film.y / resolution.y as f32 - 1.0)
+    Vec2::new(
+        2.0 * film.x / resolution.x as f32 - 1.0,
+        2.0 * film.y / resolution.y as f32 - 1.0,
+    )
 }
 
 #[cfg(test)]

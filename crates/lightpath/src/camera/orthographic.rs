@@ -33,7 +33,11 @@ impl Orthographic {
                 Vec2::new(size * w / d, size * h / d)
             }
         };
-        Orthographic { resolution, render_from_camera, half_extents }
+        Orthographic {
+            resolution,
+            render_from_camera,
+            half_extents,
+        }
     }
 
     #[inline]
@@ -54,9 +58,18 @@ mod tests {
     fn rays_are_parallel_and_span_the_plane() {
         let t = Transform::rotate(Vec3::Y, 30.0).unwrap();
         let cam = Orthographic::new(UVec2::new(200, 100), 2.0, FovAxis::X, t);
-        let a = cam.generate_ray(&CameraSample { film: Vec2::new(0.0, 0.0), lens: Vec2::ZERO });
-        let b = cam.generate_ray(&CameraSample { film: Vec2::new(200.0, 100.0), lens: Vec2::ZERO });
-        let c = cam.generate_ray(&CameraSample { film: Vec2::new(100.0, 50.0), lens: Vec2::ZERO });
+        let a = cam.generate_ray(&CameraSample {
+            film: Vec2::new(0.0, 0.0),
+            lens: Vec2::ZERO,
+        });
+        let b = cam.generate_ray(&CameraSample {
+            film: Vec2::new(200.0, 100.0),
+            lens: Vec2::ZERO,
+        });
+        let c = cam.generate_ray(&CameraSample {
+            film: Vec2::new(100.0, 50.0),
+            lens: Vec2::ZERO,
+        });
         assert!((a.direction - b.direction).length() < 1e-6);
         assert!((a.direction - t.vector(Vec3::Z)).length() < 1e-6);
         assert!(c.origin.length() < 1e-6);

@@ -23,8 +23,17 @@ pub struct Perspective {
 }
 
 impl Perspective {
-    pub fn new(resolution: UVec2, fov_degrees: f32, fov_axis: FovAxis, render_from_camera: Transform) -> Self {
-        Perspective { resolution, render_from_camera, half_extents: fov_axis.half_extents(fov_degrees, resolution) }
+    pub fn new(
+        resolution: UVec2,
+        fov_degrees: f32,
+        fov_axis: FovAxis,
+        render_from_camera: Transform,
+    ) -> Self {
+        Perspective {
+            resolution,
+            render_from_camera,
+            half_extents: fov_axis.half_extents(fov_degrees, resolution),
+        }
     }
 
     /// The camera-space direction (not normalised, z = 1) through a film point.
@@ -49,7 +58,10 @@ mod tests {
     use super::*;
 
     fn sample(x: f32, y: f32) -> CameraSample {
-        CameraSample { film: Vec2::new(x, y), lens: Vec2::splat(0.5) }
+        CameraSample {
+            film: Vec2::new(x, y),
+            lens: Vec2::splat(0.5),
+        }
     }
 
     #[test]

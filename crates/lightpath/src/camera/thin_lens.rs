@@ -41,7 +41,9 @@ impl Aperture {
     pub fn sample(&self, u: Vec2) -> Vec2 {
         match self {
             Aperture::Disk => warp::square_to_uniform_disk_concentric(u),
-            Aperture::Polygon { blades, rotation } => warp::square_to_uniform_polygon(u, *blades, *rotation),
+            Aperture::Polygon { blades, rotation } => {
+                warp::square_to_uniform_polygon(u, *blades, *rotation)
+            }
             Aperture::Image(d) => {
                 let (p, _) = d.sample(u);
                 // Image row 0 is the top of the mask: camera-space -y.
@@ -96,7 +98,13 @@ mod tests {
 
     #[test]
     fn rays_converge_on_the_focal_plane() {
-        for aperture in [Aperture::Disk, Aperture::Polygon { blades: 6, rotation: 0.3 }] {
+        for aperture in [
+            Aperture::Disk,
+            Aperture::Polygon {
+                blades: 6,
+                rotation: 0.3,
+            },
+        ] {
             let cam = lens(aperture);
             let to = cam.pinhole.render_from_camera;
             let mut rng = Pcg32::new(1, 2);
@@ -106,7 +114,10 @@ mod tests {
                 let target = to.point(pin);
                 let mut origins = Vec::new();
                 for _ in 0..8 {
-                    let r = cam.generate_ray(&CameraSample { film, lens: Vec2::new(rng.next_f32(), rng.next_f32()) });
+                    let r = cam.generate_ray(&CameraSample {
+                        film,
+                        lens: Vec2::new(rng.next_f32(), rng.next_f32()),
+                    });
                     // Where the ray meets the focal plane (camera z = focus distance).
                     let o = to.inverse().point(r.origin);
                     let d = to.inverse().vector(r.direction);
@@ -128,7 +139,9 @@ mod tests {
         let cam = lens(Aperture::Image(Box::new(d)));
         let mut rng = Pcg32::new(3, 4);
         for _ in 0..200 {
-            let p = cam.aperture.sample(Vec2::new(rng.next_f32(), rng.next_f32()));
+            let p = cam
+                .aperture
+                .sample(Vec2::new(rng.next_f32(), rng.next_f32()));
             assert!(p.x >= 0.0 && p.y <= 0.0, "{p}");
         }
     }

@@ -45,7 +45,13 @@ impl ImageErrors {
             }
         }
         let n = (test.pixels.len() * 3).max(1) as f64;
-        Some(ImageErrors { mae: abs / n, me: (signed / n).abs(), rmse: (sq / n).sqrt(), rel_mse: rel / n, non_finite })
+        Some(ImageErrors {
+            mae: abs / n,
+            me: (signed / n).abs(),
+            rmse: (sq / n).sqrt(),
+            rel_mse: rel / n,
+            non_finite,
+        })
     }
 }
 

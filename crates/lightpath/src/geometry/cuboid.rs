@@ -59,7 +59,11 @@ impl Cuboid {
             return None;
         };
         let positive = ray.at(t)[axis] > 0.0;
-        Some(ShapeHit { t, prim: (axis * 2 + positive as usize) as u32, uv: Vec2::ZERO })
+        Some(ShapeHit {
+            t,
+            prim: (axis * 2 + positive as usize) as u32,
+            uv: Vec2::ZERO,
+        })
     }
 
     pub fn interaction(&self, ray: &Ray, hit: &ShapeHit) -> SurfaceInteraction {
@@ -104,7 +108,9 @@ mod tests {
         let h = Cuboid.intersect(&inside).unwrap();
         assert!((h.t - 1.0).abs() < 1e-6);
         assert_eq!(Cuboid.interaction(&inside, &h).n, Vec3::Y);
-        assert!(Cuboid.intersect(&Ray::new(Vec3::new(2.0, 0.0, -5.0), Vec3::Z)).is_none());
+        assert!(Cuboid
+            .intersect(&Ray::new(Vec3::new(2.0, 0.0, -5.0), Vec3::Z))
+            .is_none());
     }
 
     proptest! {

@@ -46,7 +46,11 @@ impl Cylinder {
             let discrim = 4.0 * a * (1.0 - len) * (1.0 + len);
             if discrim >= 0.0 {
                 let root = discrim.sqrt();
-                let q = if b < 0.0 { -0.5 * (b - root) } else { -0.5 * (b + root) };
+                let q = if b < 0.0 {
+                    -0.5 * (b - root)
+                } else {
+                    -0.5 * (b + root)
+                };
                 let t0 = q / a;
                 let t1 = if q != 0.0 { c / q } else { t0 };
                 for t in [t0, t1] {
@@ -67,7 +71,11 @@ impl Cylinder {
                 }
             }
         }
-        best.map(|(t, prim)| ShapeHit { t, prim, uv: Vec2::ZERO })
+        best.map(|(t, prim)| ShapeHit {
+            t,
+            prim,
+            uv: Vec2::ZERO,
+        })
     }
 
     pub fn interaction(&self, ray: &Ray, hit: &ShapeHit) -> SurfaceInteraction {
@@ -86,7 +94,8 @@ impl Cylinder {
             let n = Vec3::new(p.x, p.y, 0.0);
             SurfaceInteraction {
                 p,
-                p_error: gamma(3) * Vec3::new(p.x.abs(), p.y.abs(), 0.0) + gamma(5) * Vec3::new(0.0, 0.0, p.z.abs()),
+                p_error: gamma(3) * Vec3::new(p.x.abs(), p.y.abs(), 0.0)
+                    + gamma(5) * Vec3::new(0.0, 0.0, p.z.abs()),
                 t: hit.t,
                 n,
                 shading_n: n,
@@ -111,7 +120,11 @@ impl Cylinder {
                 t: hit.t,
                 n,
                 shading_n: n,
-                dpdu: if r > 0.0 { Vec3::new(p.x / r, p.y / r, 0.0) } else { Vec3::X },
+                dpdu: if r > 0.0 {
+                    Vec3::new(p.x / r, p.y / r, 0.0)
+                } else {
+                    Vec3::X
+                },
                 uv: Vec2::new(r, phi / (2.0 * PI)),
                 wo,
                 instance: 0,
@@ -145,6 +158,8 @@ mod tests {
         let h = open.intersect(&inside).unwrap();
         assert!((h.t - 1.0).abs() < 1e-6);
         // Above the tube.
-        assert!(open.intersect(&Ray::new(Vec3::new(-5.0, 0.0, 1.5), Vec3::X)).is_none());
+        assert!(open
+            .intersect(&Ray::new(Vec3::new(-5.0, 0.0, 1.5), Vec3::X))
+            .is_none());
     }
 }

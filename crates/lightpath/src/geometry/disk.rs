@@ -25,7 +25,11 @@ impl Disk {
         if p.x * p.x + p.y * p.y > 1.0 {
             return None;
         }
-        Some(ShapeHit { t, prim: 0, uv: Vec2::new(p.x, p.y) })
+        Some(ShapeHit {
+            t,
+            prim: 0,
+            uv: Vec2::new(p.x, p.y),
+        })
     }
 
     pub fn interaction(&self, ray: &Ray, hit: &ShapeHit) -> SurfaceInteraction {
@@ -35,7 +39,11 @@ impl Disk {
         if phi < 0.0 {
             phi += 2.0 * PI;
         }
-        let dpdu = if r > 0.0 { Vec3::new(p.x / r, p.y / r, 0.0) } else { Vec3::X };
+        let dpdu = if r > 0.0 {
+            Vec3::new(p.x / r, p.y / r, 0.0)
+        } else {
+            Vec3::X
+        };
         z0_interaction(ray, hit, p, Vec2::new(r, phi / (2.0 * PI)), dpdu)
     }
 
@@ -51,8 +59,12 @@ mod tests {
     #[test]
     fn disk_hits_inside_only() {
         let down = -Vec3::Z;
-        assert!(Disk.intersect(&Ray::new(Vec3::new(0.7, 0.7, 1.0), down)).is_some());
-        assert!(Disk.intersect(&Ray::new(Vec3::new(0.72, 0.72, 1.0), down)).is_none());
+        assert!(Disk
+            .intersect(&Ray::new(Vec3::new(0.7, 0.7, 1.0), down))
+            .is_some());
+        assert!(Disk
+            .intersect(&Ray::new(Vec3::new(0.72, 0.72, 1.0), down))
+            .is_none());
         let ray = Ray::new(Vec3::new(0.0, 0.5, 1.0), down);
         let h = Disk.intersect(&ray).unwrap();
         let si = Disk.interaction(&ray, &h);

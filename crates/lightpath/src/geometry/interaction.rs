@@ -37,7 +37,9 @@ impl SurfaceInteraction {
             p_error,
             t: self.t,
             n: render_from_object.normal(self.n).normalize_or_zero(),
-            shading_n: render_from_object.normal(self.shading_n).normalize_or_zero(),
+            shading_n: render_from_object
+                .normal(self.shading_n)
+                .normalize_or_zero(),
             dpdu: render_from_object.vector(self.dpdu),
             uv: self.uv,
             wo: render_from_object.vector(self.wo).normalize_or_zero(),

@@ -51,14 +51,27 @@ impl WatertightRay {
         let kx = (kz + 1) % 3;
         let ky = (kx + 1) % 3;
         let (dx, dy, dz) = (d[kx], d[ky], d[kz]);
-        WatertightRay { origin: ray.origin, kx, ky, kz, shear: Vec3::new(-dx / dz, -dy / dz, 1.0 / dz) }
+        WatertightRay {
+            origin: ray.origin,
+            kx,
+            ky,
+            kz,
+            shear: Vec3::new(-dx / dz, -dy / dz, 1.0 / dz),
+        }
     }
 }
 
 /// Watertight ray/triangle test. Returns `(t, b0, b1, b2)` for a hit with
 /// `t_min < t < t_max` that is provably in front of the origin.
 #[inline]
-pub fn intersect_triangle_watertight(wr: &WatertightRay, t_min: f32, t_max: f32, p0: Vec3, p1: Vec3, p2: Vec3) -> Option<(f32, f32, f32, f32)> {
+pub fn intersect_triangle_watertight(
+    wr: &WatertightRay,
+    t_min: f32,
+    t_max: f32,
+    p0: Vec3,
+    p1: Vec3,
+    p2: Vec3,
+) -> Option<(f32, f32, f32, f32)> {
     // Translate to the ray origin, permute, shear.
     let (kx, ky, kz) = (wr.kx, wr.ky, wr.kz);
     let a = p0 - wr.origin;
@@ -109,7 +122,8 @@ pub fn intersect_triangle_watertight(wr: &WatertightRay, t_min: f32, t_max: f32,
     let delta_y = gamma(5) * (max_yt + max_zt);
     let delta_e = 2.0 * (gamma(2) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
     let max_e = e0.abs().max(e1.abs()).max(e2.abs());
-    let delta_t = 3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
+    let delta_t =
+        3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
     if t <= delta_t {
         return None;
     }
@@ -132,7 +146,9 @@ impl TriangleMesh {
         }
         for (f, tri) in data.indices.iter().enumerate() {
             if let Some(&bad) = tri.iter().find(|&&i| i as usize >= n) {
-                return Err(format!("triangle {f} refers to vertex {bad}, but there are {n}"));
+                return Err(format!(
+                    "triangle {f} refers to vertex {bad}, but there are {n}"
+                ));
             }
         }
         let boxes: Vec<Bounds3> = data
@@ -147,7 +163,10 @@ impl TriangleMesh {
             .collect();
         let accel = Accel::build(accel, &boxes);
         // Normals that are not finite or zero make the mesh flat rather than NaN.
-        let normals_ok = data.normals.iter().all(|n| n.is_finite() && n.length_squared() > 0.0);
+        let normals_ok = data
+            .normals
+            .iter()
+            .all(|n| n.is_finite() && n.length_squared() > 0.0);
         Ok(TriangleMesh {
             positions: data.positions,
             normals: if normals_ok { data.normals } else { Vec::new() },
@@ -169,7 +188,11 @@ impl TriangleMesh {
     #[inline]
     fn vertices(&self, prim: u32) -> (Vec3, Vec3, Vec3) {
         let [a, b, c] = self.indices[prim as usize];
-        (self.positions[a as usize], self.positions[b as usize], self.positions[c as usize])
+        (
+            self.positions[a as usize],
+            self.positions[b as usize],
+            self.positions[c as usize],
+        )
     }
 
     /// Closest hit through the mesh's BVH.
@@ -182,7 +205,11 @@ impl TriangleMesh {
             match intersect_triangle_watertight(&wr, ray.t_min, *t_max, p0, p1, p2) {
                 Some((t, _b0, b1, b2)) => {
                     *t_max = t;
-                    best = Some(ShapeHit { t, prim, uv: Vec2::new(b1, b2) });
+                    best = Some(ShapeHit {
+                        t,
+                        prim,
+                        uv: Vec2::new(b1, b2),
+                    });
                     true
                 }
                 None => false,
@@ -212,7 +239,11 @@ impl TriangleMesh {
         let (uv0, uv1, uv2) = if self.uvs.is_empty() {
             (Vec2::ZERO, Vec2::X, Vec2::ONE)
         } else {
-            (self.uvs[i0 as usize], self.uvs[i1 as usize], self.uvs[i2 as usize])
+            (
+                self.uvs[i0 as usize],
+                self.uvs[i1 as usize],
+                self.uvs[i2 as usize],
+            )
         };
         let uv = uv0 * b0 + uv1 * b1 + uv2 * b2;
         let cross = (p1 - p0).cross(p2 - p0);
@@ -221,11 +252,17 @@ impl TriangleMesh {
         } else {
             // Degenerate triangle: a normal in f64, else any.
             let c = (p1.as_dvec3() - p0.as_dvec3()).cross(p2.as_dvec3() - p0.as_dvec3());
-            if c.length_squared() > 0.0 { c.normalize().as_vec3() } else { DVec3::Z.as_vec3() }
+            if c.length_squared() > 0.0 {
+                c.normalize().as_vec3()
+            } else {
+                DVec3::Z.as_vec3()
+            }
         };
         let mut shading_n = n;
         if self.smooth && !self.normals.is_empty() {
-            let ns = self.normals[i0 as usize] * b0 + self.normals[i1 as usize] * b1 + self.normals[i2 as usize] * b2;
+            let ns = self.normals[i0 as usize] * b0
+                + self.normals[i1 as usize] * b1
+                + self.normals[i2 as usize] * b2;
             if ns.length_squared() > 0.0 {
                 shading_n = ns.normalize();
                 // The geometric normal follows the side the vertex normals define.
@@ -240,7 +277,11 @@ impl TriangleMesh {
         let dp02 = p0 - p2;
         let dp12 = p1 - p2;
         let det = duv02.x * duv12.y - duv02.y * duv12.x;
-        let mut dpdu = if det.abs() > 1e-12 { (dp02 * duv12.y - dp12 * duv02.y) / det } else { Vec3::ZERO };
+        let mut dpdu = if det.abs() > 1e-12 {
+            (dp02 * duv12.y - dp12 * duv02.y) / det
+        } else {
+            Vec3::ZERO
+        };
         if !dpdu.is_finite() || dpdu.cross(n).length_squared() == 0.0 {
             dpdu = Frame::from_normal(n).s;
         }
@@ -267,13 +308,23 @@ mod tests {
     /// An icosphere-like closed mesh: an octahedron subdivided `levels` times.
     pub(crate) fn closed_sphere_mesh(levels: u32) -> MeshData {
         let mut positions = vec![Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z];
-        let mut indices: Vec<[u32; 3]> = vec![[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]];
+        let mut indices: Vec<[u32; 3]> = vec![
+            [0, 2, 4],
+            [2, 1, 4],
+            [1, 3, 4],
+            [3, 0, 4],
+            [2, 0, 5],
+            [1, 2, 5],
+            [3, 1, 5],
+            [0, 3, 5],
+        ];
         for _ in 0..levels {
             let mut mid = std::collections::HashMap::new();
             let mut next = Vec::new();
             let mut midpoint = |a: u32, b: u32, positions: &mut Vec<Vec3>| {
                 *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                    positions.push(((positions[a as usize] + positions[b as usize]) * 0.5).normalize());
+                    positions
+                        .push(((positions[a as usize] + positions[b as usize]) * 0.5).normalize());
                     positions.len() as u32 - 1
                 })
             };
@@ -285,7 +336,12 @@ mod tests {
             }
             indices = next;
         }
-        MeshData { positions, normals: vec![], uvs: vec![], indices }
+        MeshData {
+            positions,
+            normals: vec![],
+            uvs: vec![],
+            indices,
+        }
     }
 
     #[test]
@@ -306,24 +362,51 @@ mod tests {
         assert!((si.n - Vec3::Z).length() < 1e-6);
         // Barycentrics of (0.25, 0.25): b1 = 0.25, b2 = 0.25.
         assert!((h.uv - Vec2::splat(0.25)).length() < 1e-6);
-        assert!(mesh.intersect(&Ray::new(Vec3::new(0.75, 0.75, 1.0), -Vec3::Z), &mut s).is_none());
+        assert!(mesh
+            .intersect(&Ray::new(Vec3::new(0.75, 0.75, 1.0), -Vec3::Z), &mut s)
+            .is_none());
         // Backface hits count too (no culling).
-        assert!(mesh.intersect(&Ray::new(Vec3::new(0.25, 0.25, -1.0), Vec3::Z), &mut s).is_some());
+        assert!(mesh
+            .intersect(&Ray::new(Vec3::new(0.25, 0.25, -1.0), Vec3::Z), &mut s)
+            .is_some());
         // t range.
-        assert!(mesh.intersect(&Ray::with_range(Vec3::new(0.25, 0.25, 1.0), -Vec3::Z, 0.0, 0.5), &mut s).is_none());
-        assert!(mesh.intersect(&Ray::with_range(Vec3::new(0.25, 0.25, 1.0), -Vec3::Z, 1.5, 9.0), &mut s).is_none());
+        assert!(mesh
+            .intersect(
+                &Ray::with_range(Vec3::new(0.25, 0.25, 1.0), -Vec3::Z, 0.0, 0.5),
+                &mut s
+            )
+            .is_none());
+        assert!(mesh
+            .intersect(
+                &Ray::with_range(Vec3::new(0.25, 0.25, 1.0), -Vec3::Z, 1.5, 9.0),
+                &mut s
+            )
+            .is_none());
     }
 
     #[test]
     fn bad_meshes_are_rejected() {
-        let bad_index = MeshData { positions: vec![Vec3::ZERO; 3], normals: vec![], uvs: vec![], indices: vec![[0, 1, 3]] };
-        assert!(TriangleMesh::new(bad_index, true, AccelKind::Bvh2).unwrap_err().contains("vertex 3"));
-        let nan = MeshData { positions: vec![Vec3::ZERO, Vec3::NAN, Vec3::X], normals: vec![], uvs: vec![], indices: vec![[0, 1, 2]] };
+        let bad_index = MeshData {
+            positions: vec![Vec3::ZERO; 3],
+            normals: vec![],
+            uvs: vec![],
+            indices: vec![[0, 1, 3]],
+        };
+        assert!(TriangleMesh::new(bad_index, true, AccelKind::Bvh2)
+            .unwrap_err()
+            .contains("vertex 3"));
+        let nan = MeshData {
+            positions: vec![Vec3::ZERO, Vec3::NAN, Vec3::X],
+            normals: vec![],
+            uvs: vec![],
+            indices: vec![[0, 1, 2]],
+        };
         assert!(TriangleMesh::new(nan, true, AccelKind::Bvh2).is_err());
     }
 
-    /// Shoots rays exactly through the shared vertices and edge points of a closed mesh
-    /// from inside and outside: every one must hit.
+    /// Shoots rays through the shared vertices and edge points of a closed convex mesh,
+    /// from inside and from outside in front of the point (so the ray crosses the surface
+    /// there rather than grazing a silhouette): every one must hit.
     #[test]
     fn watertight_through_edges_and_vertices() {
         let data = closed_sphere_mesh(4); // 2048 triangles
@@ -331,7 +414,11 @@ mod tests {
         let mut rng = Pcg32::new(11, 7);
         let mut targets = Vec::new();
         for &[a, b, c] in &mesh.indices {
-            let (pa, pb, pc) = (mesh.positions[a as usize], mesh.positions[b as usize], mesh.positions[c as usize]);
+            let (pa, pb, pc) = (
+                mesh.positions[a as usize],
+                mesh.positions[b as usize],
+                mesh.positions[c as usize],
+            );
             targets.push(pa);
             for (p, q) in [(pa, pb), (pb, pc), (pc, pa)] {
                 for _ in 0..3 {
@@ -346,8 +433,17 @@ mod tests {
         while shot < 1_000_000 {
             for &target in &targets {
                 // From a random point outside, and from a random point inside.
-                let outside = Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, rng.next_f32() - 0.5).normalize() * 3.0;
-                let inside = Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, rng.next_f32() - 0.5) * 0.5;
+                let jitter = Vec3::new(
+                    rng.next_f32() - 0.5,
+                    rng.next_f32() - 0.5,
+                    rng.next_f32() - 0.5,
+                );
+                let outside = target.normalize() * 3.0 + jitter;
+                let inside = Vec3::new(
+                    rng.next_f32() - 0.5,
+                    rng.next_f32() - 0.5,
+                    rng.next_f32() - 0.5,
+                ) * 0.5;
                 for origin in [outside, inside] {
                     let ray = Ray::new(origin, target - origin);
                     if mesh.intersect(&ray, &mut stats).is_none() {

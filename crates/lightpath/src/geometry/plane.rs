@@ -31,7 +31,13 @@ pub(super) fn intersect_z0(ray: &Ray) -> Option<(f32, Vec3)> {
 
 /// The interaction for a hit on z = 0 with normal +z.
 #[inline]
-pub(super) fn z0_interaction(ray: &Ray, hit: &ShapeHit, p: Vec3, uv: Vec2, dpdu: Vec3) -> SurfaceInteraction {
+pub(super) fn z0_interaction(
+    ray: &Ray,
+    hit: &ShapeHit,
+    p: Vec3,
+    uv: Vec2,
+    dpdu: Vec3,
+) -> SurfaceInteraction {
     SurfaceInteraction {
         p,
         // z is exact by construction; x and y carry the error of o + t d.
@@ -58,7 +64,11 @@ impl Plane {
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<ShapeHit> {
         let (t, _) = intersect_z0(ray)?;
-        Some(ShapeHit { t, prim: 0, uv: Vec2::ZERO })
+        Some(ShapeHit {
+            t,
+            prim: 0,
+            uv: Vec2::ZERO,
+        })
     }
 
     pub fn interaction(&self, ray: &Ray, hit: &ShapeHit) -> SurfaceInteraction {
@@ -74,14 +84,22 @@ mod tests {
 
     #[test]
     fn plane_hits() {
-        let h = Plane.intersect(&Ray::new(Vec3::new(5.0, -7.0, 2.0), -Vec3::Z)).unwrap();
+        let h = Plane
+            .intersect(&Ray::new(Vec3::new(5.0, -7.0, 2.0), -Vec3::Z))
+            .unwrap();
         assert_eq!(h.t, 2.0);
         let si = Plane.interaction(&Ray::new(Vec3::new(5.0, -7.0, 2.0), -Vec3::Z), &h);
         assert_eq!(si.p, Vec3::new(5.0, -7.0, 0.0));
         assert_eq!(si.n, Vec3::Z);
-        assert!(Plane.intersect(&Ray::new(Vec3::new(0.0, 0.0, 2.0), Vec3::X)).is_none());
-        assert!(Plane.intersect(&Ray::new(Vec3::new(0.0, 0.0, 2.0), Vec3::Z)).is_none());
+        assert!(Plane
+            .intersect(&Ray::new(Vec3::new(0.0, 0.0, 2.0), Vec3::X))
+            .is_none());
+        assert!(Plane
+            .intersect(&Ray::new(Vec3::new(0.0, 0.0, 2.0), Vec3::Z))
+            .is_none());
         // From below.
-        assert!(Plane.intersect(&Ray::new(Vec3::new(0.0, 0.0, -2.0), Vec3::Z)).is_some());
+        assert!(Plane
+            .intersect(&Ray::new(Vec3::new(0.0, 0.0, -2.0), Vec3::Z))
+            .is_some());
     }
 }

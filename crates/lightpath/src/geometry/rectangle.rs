@@ -26,7 +26,11 @@ impl Rectangle {
         if p.x.abs() > 1.0 || p.y.abs() > 1.0 {
             return None;
         }
-        Some(ShapeHit { t, prim: 0, uv: Vec2::new(p.x, p.y) })
+        Some(ShapeHit {
+            t,
+            prim: 0,
+            uv: Vec2::new(p.x, p.y),
+        })
     }
 
     pub fn interaction(&self, ray: &Ray, hit: &ShapeHit) -> SurfaceInteraction {

@@ -41,7 +41,11 @@ impl Sphere {
             return None;
         }
         let root = discrim.sqrt();
-        let q = if b < 0.0 { -0.5 * (b - root) } else { -0.5 * (b + root) };
+        let q = if b < 0.0 {
+            -0.5 * (b - root)
+        } else {
+            -0.5 * (b + root)
+        };
         let (mut t0, mut t1) = (q / a, c / q);
         if q == 0.0 {
             t1 = t0;
@@ -110,20 +114,36 @@ mod tests {
     #[test]
     fn hits_from_outside_and_inside() {
         let s = Sphere;
-        let h = s.intersect(&Ray::new(Vec3::new(0.0, 0.0, -3.0), Vec3::Z)).unwrap();
+        let h = s
+            .intersect(&Ray::new(Vec3::new(0.0, 0.0, -3.0), Vec3::Z))
+            .unwrap();
         assert!((h.t - 2.0).abs() < 1e-6);
         let h = s.intersect(&Ray::new(Vec3::ZERO, Vec3::Z)).unwrap();
         assert!((h.t - 1.0).abs() < 1e-6);
-        assert!(s.intersect(&Ray::new(Vec3::new(0.0, 2.0, -3.0), Vec3::Z)).is_none());
+        assert!(s
+            .intersect(&Ray::new(Vec3::new(0.0, 2.0, -3.0), Vec3::Z))
+            .is_none());
         // Behind the origin.
-        assert!(s.intersect(&Ray::new(Vec3::new(0.0, 0.0, 3.0), Vec3::Z)).is_none());
+        assert!(s
+            .intersect(&Ray::new(Vec3::new(0.0, 0.0, 3.0), Vec3::Z))
+            .is_none());
         // t_max honoured.
         assert!(s
-            .intersect(&Ray::with_range(Vec3::new(0.0, 0.0, -3.0), Vec3::Z, 0.0, 1.5))
+            .intersect(&Ray::with_range(
+                Vec3::new(0.0, 0.0, -3.0),
+                Vec3::Z,
+                0.0,
+                1.5
+            ))
             .is_none());
         // t_min honoured: skips the near hit.
         let h = s
-            .intersect(&Ray::with_range(Vec3::new(0.0, 0.0, -3.0), Vec3::Z, 2.5, 10.0))
+            .intersect(&Ray::with_range(
+                Vec3::new(0.0, 0.0, -3.0),
+                Vec3::Z,
+                2.5,
+                10.0,
+            ))
             .unwrap();
         assert!((h.t - 4.0).abs() < 1e-5);
     }

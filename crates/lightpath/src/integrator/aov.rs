@@ -60,9 +60,17 @@ impl Aov {
                 Some(si) => (si.shading_n + Vec3::ONE) * 0.5,
                 None => Vec3::splat(0.5),
             },
-            AovVariable::Distance => hit.map_or(Vec3::ZERO, |si| Vec3::splat(si.t * ray.direction.length())),
+            AovVariable::Distance => {
+                hit.map_or(Vec3::ZERO, |si| Vec3::splat(si.t * ray.direction.length()))
+            }
             AovVariable::Uv => hit.map_or(Vec3::ZERO, |si| Vec3::new(si.uv.x, si.uv.y, 0.0)),
-            AovVariable::Bvh => Vec3::new(ray_stats.nodes_visited as f32, ray_stats.prims_tested as f32, 0.0) / self.scale,
+            AovVariable::Bvh => {
+                Vec3::new(
+                    ray_stats.nodes_visited as f32,
+                    ray_stats.prims_tested as f32,
+                    0.0,
+                ) / self.scale
+            }
         }
     }
 }

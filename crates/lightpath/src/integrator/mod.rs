@@ -1,8 +1,10 @@
 //! Integrators: what a camera ray's sample value is.
 
+mod ambient_occlusion;
 mod aov;
 mod camera_direction;
 
+pub use ambient_occlusion::AmbientOcclusion;
 pub use aov::{Aov, AovVariable};
 pub use camera_direction::CameraDirection;
 
@@ -16,15 +18,23 @@ use glam::Vec3;
 #[derive(Debug, Clone)]
 pub enum Integrator {
     Aov(Aov),
+    AmbientOcclusion(AmbientOcclusion),
     CameraDirection(CameraDirection),
 }
 
 impl Integrator {
     /// The value carried by a camera ray.
     #[inline]
-    pub fn li(&self, scene: &Scene, ray: &Ray, sampler: &mut Sampler, stats: &mut RayStats) -> Vec3 {
+    pub fn li(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        sampler: &mut Sampler,
+        stats: &mut RayStats,
+    ) -> Vec3 {
         match self {
             Integrator::Aov(i) => i.li(scene, ray, stats),
+            Integrator::AmbientOcclusion(i) => i.li(scene, ray, sampler, stats),
             Integrator::CameraDirection(i) => i.li(ray, sampler),
         }
     }

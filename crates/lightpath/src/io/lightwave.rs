@@ -28,10 +28,12 @@ use super::props::Node;
 use super::xml::resolve_path;
 use super::{LoadOptions, LoadedScene, TestSpec};
 use crate::accel::AccelKind;
-use crate::camera::{Aperture, Camera, Fisheye, FisheyeMapping, FovAxis, Orthographic, Perspective, ThinLens};
+use crate::camera::{
+    Aperture, Camera, Fisheye, FisheyeMapping, FovAxis, Orthographic, Perspective, ThinLens,
+};
 use crate::error::{Error, Result};
 use crate::geometry::{Cuboid, Cylinder, Disk, Plane, Rectangle, Shape, Sphere, TriangleMesh};
-use crate::integrator::{Aov, AovVariable, CameraDirection, Integrator};
+use crate::integrator::{AmbientOcclusion, Aov, AovVariable, CameraDirection, Integrator};
 use crate::math::Transform;
 use crate::sampling::{Distribution2D, IndependentSampler, Sampler};
 use crate::scene::{Instance, Scene};
@@ -46,7 +48,12 @@ pub const MAX_IMAGE_SIDE: i64 = 1 << 15;
 
 /// Builds a scene from the root of a lightwave document.
 pub fn build(root: &Rc<Node>, path: &Path, options: &LoadOptions) -> Result<LoadedScene> {
-    let mut b = Builder { path: path.to_path_buf(), options: options.clone(), shapes: HashMap::new(), meshes: HashMap::new() };
+    let mut b = Builder {
+        path: path.to_path_buf(),
+        options: options.clone(),
+        shapes: HashMap::new(),
+        meshes: HashMap::new(),
+    };
     b.root(root)
 }
 
@@ -68,8 +75,14 @@ fn expect_tag(node: &Node, tag: &str) -> Result<()> {
 
 fn unknown_type(node: &Node, known: &[&str]) -> Error {
     let t = node.type_name.as_deref().unwrap_or("");
-    let hint = crate::io::suggest(t, known).map(|s| format!(" (did you mean `{s}`?)")).unwrap_or_default();
-    node.error(format!("unknown {} type `{t}`{hint}; known: {}", node.tag, known.join(", ")))
+    let hint = crate::io::suggest(t, known)
+        .map(|s| format!(" (did you mean `{s}`?)"))
+        .unwrap_or_default();
+    node.error(format!(
+        "unknown {} type `{t}`{hint}; known: {}",
+        node.tag,
+        known.join(", ")
+    ))
 }
 
 impl Builder {
@@ -80,7 +93,10 @@ impl Builder {
                     return Err(unknown_type(root, &["image"]));
                 }
                 let id = root.id.clone().unwrap_or_else(|| {
-                    self.path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default()
+                    self.path
+                        .file_stem()
+                        .map(|s| s.to_string_lossy().into_owned())
+                        .unwrap_or_default()
                 });
                 let mae = root.float_or("mae", 0.1)? as f64;
                 let me = root.float_or("me", 2e-4)? as f64;
@@ -91,13 +107,18 @@ impl Builder {
                 Ok(loaded)
             }
             "integrator" => self.integrator(root),
-            _ => Err(root.error(format!("expected <test> or <integrator> as the root element, found <{}>", root.tag))),
+            _ => Err(root.error(format!(
+                "expected <test> or <integrator> as the root element, found <{}>",
+                root.tag
+            ))),
         }
     }
 
     fn single_child(&self, node: &Node, tag: &str) -> Result<Rc<Node>> {
         let mut found = node.children_tagged(tag);
-        let first = found.next().ok_or_else(|| node.error(format!("{} needs a <{tag}>", node.describe())))?;
+        let first = found
+            .next()
+            .ok_or_else(|| node.error(format!("{} needs a <{tag}>", node.describe())))?;
         if let Some(second) = found.next() {
             return Err(second.error(format!("{} has more than one <{tag}>", node.describe())));
         }
@@ -107,7 +128,11 @@ impl Builder {
     fn check_children(&self, node: &Node, allowed: &[&str]) -> Result<()> {
         for c in &node.children {
             if !allowed.contains(&c.tag.as_str()) {
-                return Err(c.error(format!("<{}> is not allowed inside {}", c.tag, node.describe())));
+                return Err(c.error(format!(
+                    "<{}> is not allowed inside {}",
+                    c.tag,
+                    node.describe()
+                )));
             }
         }
         Ok(())
@@ -118,28 +143,48 @@ impl Builder {
         self.check_children(node, &["scene", "sampler"])?;
         let integrator = match node.type_name.as_deref() {
             Some("aov") => {
-                let name = node.string("variable").ok_or_else(|| node.error("aov integrator needs a `variable`"))?;
+                let name = node
+                    .string("variable")
+                    .ok_or_else(|| node.error("aov integrator needs a `variable`"))?;
                 let variable = AovVariable::from_name(&name).ok_or_else(|| {
-                    node.error(format!("unknown aov variable `{name}`; known: {}", AovVariable::NAMES.join(", ")))
+                    node.error(format!(
+                        "unknown aov variable `{name}`; known: {}",
+                        AovVariable::NAMES.join(", ")
+                    ))
                 })?;
                 let scale = node.float_or("scale", 1.0)?;
-                if !(scale > 0.0) {
+                if scale <= 0.0 {
                     return Err(node.error("aov `scale` must be positive"));
                 }
                 Integrator::Aov(Aov { variable, scale })
             }
             Some("camera") => Integrator::CameraDirection(CameraDirection),
-            Some(t @ ("direct" | "pathtracer" | "albedo" | "normals")) => {
-                return Err(node.error(format!("integrator `{t}` is not supported yet (supported: aov, camera)")));
+            Some("ao") => {
+                let distance = node.float_or("distance", f32::INFINITY)?;
+                if distance <= 0.0 {
+                    return Err(node.error("ao `distance` must be positive"));
+                }
+                Integrator::AmbientOcclusion(AmbientOcclusion { distance })
             }
-            _ => return Err(unknown_type(node, &["aov", "camera"])),
+            Some(t @ ("direct" | "pathtracer" | "albedo" | "normals")) => {
+                return Err(node.error(format!(
+                    "integrator `{t}` is not supported yet (supported: aov, ao, camera)"
+                )));
+            }
+            _ => return Err(unknown_type(node, &["aov", "ao", "camera"])),
         };
         node.check_all_used()?;
         let sampler_node = self.single_child(node, "sampler")?;
         let sampler = self.sampler(&sampler_node)?;
         let scene_node = self.single_child(node, "scene")?;
         let scene = self.scene(&scene_node)?;
-        Ok(LoadedScene { scene, integrator, sampler, test: None, path: self.path.clone() })
+        Ok(LoadedScene {
+            scene,
+            integrator,
+            sampler,
+            test: None,
+            path: self.path.clone(),
+        })
     }
 
     fn sampler(&self, node: &Node) -> Result<Sampler> {
@@ -147,7 +192,9 @@ impl Builder {
             Some("independent") => {
                 let count = node.int("count")?.unwrap_or(1);
                 if !(1..=1 << 24).contains(&count) {
-                    return Err(node.error(format!("sampler `count` must be between 1 and 16777216, got {count}")));
+                    return Err(node.error(format!(
+                        "sampler `count` must be between 1 and 16777216, got {count}"
+                    )));
                 }
                 let seed = node.int("seed")?.unwrap_or(0);
                 Sampler::Independent(IndependentSampler::new(count as u32, seed as u64))
@@ -178,7 +225,9 @@ impl Builder {
                 "bsdf" | "texture" | "light" | "emission" => {
                     return Err(child.error(format!("<{}> is not supported yet", child.tag)));
                 }
-                other => return Err(child.error(format!("<{other}> is not allowed inside <scene>"))),
+                other => {
+                    return Err(child.error(format!("<{other}> is not allowed inside <scene>")))
+                }
             }
         }
         let camera = camera.ok_or_else(|| node.error("the scene has no <camera>"))?;
@@ -254,7 +303,9 @@ impl Builder {
         let h = node.int("height")?.unwrap_or(512);
         for (name, v) in [("width", w), ("height", h)] {
             if !(1..=MAX_IMAGE_SIDE).contains(&v) {
-                return Err(node.error(format!("camera {name} must be between 1 and {MAX_IMAGE_SIDE}, got {v}")));
+                return Err(node.error(format!(
+                    "camera {name} must be between 1 and {MAX_IMAGE_SIDE}, got {v}"
+                )));
             }
         }
         Ok(UVec2::new(w as u32, h as u32))
@@ -263,14 +314,17 @@ impl Builder {
     fn fov(&self, node: &Node, default: f32, max: f32) -> Result<f32> {
         let fov = node.float_or("fov", default)?;
         if !(fov > 0.0 && fov < max) {
-            return Err(node.error(format!("camera fov must be between 0 and {max} degrees, got {fov}")));
+            return Err(node.error(format!(
+                "camera fov must be between 0 and {max} degrees, got {fov}"
+            )));
         }
         Ok(fov)
     }
 
     fn fov_axis(&self, node: &Node) -> Result<FovAxis> {
         let name = node.string_or("fovAxis", "x");
-        FovAxis::from_name(&name).ok_or_else(|| node.error(format!("unknown fovAxis `{name}`; known: x, y, diagonal")))
+        FovAxis::from_name(&name)
+            .ok_or_else(|| node.error(format!("unknown fovAxis `{name}`; known: x, y, diagonal")))
     }
 
     fn camera(&self, node: &Node) -> Result<Camera> {
@@ -288,8 +342,10 @@ impl Builder {
                 let axis = self.fov_axis(node)?;
                 let aperture_radius = node.float_or("apertureRadius", 0.0)?;
                 let focus_distance = node.float_or("focusDistance", 1.0)?;
-                if aperture_radius < 0.0 || !(focus_distance > 0.0) {
-                    return Err(node.error("thinlens needs apertureRadius >= 0 and focusDistance > 0"));
+                if aperture_radius < 0.0 || focus_distance <= 0.0 {
+                    return Err(
+                        node.error("thinlens needs apertureRadius >= 0 and focusDistance > 0")
+                    );
                 }
                 let aperture = self.aperture(node)?;
                 Camera::ThinLens(ThinLens {
@@ -301,21 +357,37 @@ impl Builder {
             }
             Some("orthographic") => {
                 let size = node.float_or("size", 1.0)?;
-                if !(size > 0.0) {
+                if size <= 0.0 {
                     return Err(node.error("orthographic `size` must be positive"));
                 }
                 let axis = self.fov_axis(node)?;
-                Camera::Orthographic(Orthographic::new(resolution, size, axis, render_from_camera))
+                Camera::Orthographic(Orthographic::new(
+                    resolution,
+                    size,
+                    axis,
+                    render_from_camera,
+                ))
             }
             Some("fisheye") => {
                 let name = node.string_or("mapping", "equidistant");
                 let mapping = FisheyeMapping::from_name(&name).ok_or_else(|| {
-                    node.error(format!("unknown fisheye mapping `{name}`; known: {}", FisheyeMapping::NAMES.join(", ")))
+                    node.error(format!(
+                        "unknown fisheye mapping `{name}`; known: {}",
+                        FisheyeMapping::NAMES.join(", ")
+                    ))
                 })?;
                 let fov = node.float_or("fov", 180.0)?;
-                Camera::Fisheye(Fisheye::new(resolution, mapping, fov, render_from_camera).map_err(|m| node.error(m))?)
+                Camera::Fisheye(
+                    Fisheye::new(resolution, mapping, fov, render_from_camera)
+                        .map_err(|m| node.error(m))?,
+                )
             }
-            _ => return Err(unknown_type(node, &["perspective", "thinlens", "orthographic", "fisheye"])),
+            _ => {
+                return Err(unknown_type(
+                    node,
+                    &["perspective", "thinlens", "orthographic", "fisheye"],
+                ))
+            }
         };
         node.check_all_used()?;
         Ok(camera)
@@ -324,27 +396,44 @@ impl Builder {
     fn aperture(&self, node: &Node) -> Result<Aperture> {
         if let Some(file) = node.string("apertureImage") {
             let path = resolve_path(&node.location.file, &file);
-            let img = crate::io::image::read_image(&path, Some(false)).map_err(|e| node.error(format!("aperture image: {e}")))?;
+            let img = crate::io::image::read_image(&path, Some(false))
+                .map_err(|e| node.error(format!("aperture image: {e}")))?;
             let values: Vec<f32> = img.pixels.iter().map(|p| (p.x + p.y + p.z) / 3.0).collect();
             if !values.iter().any(|&v| v > 0.0) {
-                return Err(node.error(format!("aperture image {} is black everywhere", path.display())));
+                return Err(node.error(format!(
+                    "aperture image {} is black everywhere",
+                    path.display()
+                )));
             }
-            return Ok(Aperture::Image(Box::new(Distribution2D::new(&values, img.width as usize, img.height as usize))));
+            return Ok(Aperture::Image(Box::new(Distribution2D::new(
+                &values,
+                img.width as usize,
+                img.height as usize,
+            ))));
         }
         match node.int("blades")? {
             None => Ok(Aperture::Disk),
             Some(b) if (3..=64).contains(&b) => {
                 let rotation = node.float_or("bladeRotation", 0.0)?.to_radians();
-                Ok(Aperture::Polygon { blades: b as u32, rotation })
+                Ok(Aperture::Polygon {
+                    blades: b as u32,
+                    rotation,
+                })
             }
-            Some(b) => Err(node.error(format!("aperture `blades` must be between 3 and 64, got {b}"))),
+            Some(b) => Err(node.error(format!(
+                "aperture `blades` must be between 3 and 64, got {b}"
+            ))),
         }
     }
 
     fn instance(&mut self, node: &Node) -> Result<Instance> {
         node.check_all_used()?;
         self.check_children(node, &["shape", "transform", "bsdf", "emission"])?;
-        if let Some(c) = node.children.iter().find(|c| c.tag == "bsdf" || c.tag == "emission") {
+        if let Some(c) = node
+            .children
+            .iter()
+            .find(|c| c.tag == "bsdf" || c.tag == "emission")
+        {
             return Err(c.error(format!("<{}> is not supported yet", c.tag)));
         }
         let shape_node = self.single_child(node, "shape")?;
@@ -359,23 +448,36 @@ impl Builder {
             return Ok(s.clone());
         }
         self.check_children(node, &[])?;
-        const KNOWN: &[&str] = &["sphere", "rectangle", "plane", "disk", "cube", "cylinder", "mesh"];
+        const KNOWN: &[&str] = &[
+            "sphere",
+            "rectangle",
+            "plane",
+            "disk",
+            "cube",
+            "cylinder",
+            "mesh",
+        ];
         let shape = match node.type_name.as_deref() {
             Some("sphere") => Arc::new(Shape::Sphere(Sphere)),
             Some("rectangle") => Arc::new(Shape::Rectangle(Rectangle)),
             Some("plane") => Arc::new(Shape::Plane(Plane)),
             Some("disk") => Arc::new(Shape::Disk(Disk)),
             Some("cube" | "box") => Arc::new(Shape::Cuboid(Cuboid)),
-            Some("cylinder") => Arc::new(Shape::Cylinder(Cylinder { caps: node.bool_or("caps", false)? })),
+            Some("cylinder") => Arc::new(Shape::Cylinder(Cylinder {
+                caps: node.bool_or("caps", false)?,
+            })),
             Some("mesh") => {
-                let file = node.string("filename").ok_or_else(|| node.error("<shape type=\"mesh\"> needs a `filename`"))?;
+                let file = node
+                    .string("filename")
+                    .ok_or_else(|| node.error("<shape type=\"mesh\"> needs a `filename`"))?;
                 let smooth = node.bool_or("smooth", true)?;
                 let path = resolve_path(&node.location.file, &file);
                 let canonical = path.canonicalize().unwrap_or_else(|_| path.clone());
                 match self.meshes.get(&(canonical.clone(), smooth)) {
                     Some(s) => s.clone(),
                     None => {
-                        let data = crate::io::load_mesh(&path).map_err(|e| node.error(format!("cannot load mesh: {e}")))?;
+                        let data = crate::io::load_mesh(&path)
+                            .map_err(|e| node.error(format!("cannot load mesh: {e}")))?;
                         let mesh = TriangleMesh::new(data, smooth, self.options.accel)
                             .map_err(|m| node.error(format!("{}: {m}", path.display())))?;
                         let s = Arc::new(Shape::TriangleMesh(Arc::new(mesh)));

@@ -60,13 +60,18 @@ pub fn load_mesh(path: &Path) -> Result<MeshData> {
     match extension(path).as_str() {
         "ply" => ply::load_ply(path),
         "obj" => obj::load_obj(path),
-        other => Err(Error::mesh(path, format!("unsupported mesh format `.{other}` (supported: .ply, .obj)"))),
+        other => Err(Error::mesh(
+            path,
+            format!("unsupported mesh format `.{other}` (supported: .ply, .obj)"),
+        )),
     }
 }
 
 /// The lower-case extension of a path.
 pub fn extension(path: &Path) -> String {
-    path.extension().map(|e| e.to_string_lossy().to_lowercase()).unwrap_or_default()
+    path.extension()
+        .map(|e| e.to_string_lossy().to_lowercase())
+        .unwrap_or_default()
 }
 
 /// The known name closest to `name` (edit distance at most 2), for "did you mean".
@@ -85,7 +90,9 @@ fn edit_distance(a: &str, b: &str) -> usize {
     for (i, ca) in a.chars().enumerate() {
         let mut cur = vec![i + 1; b.len() + 1];
         for (j, cb) in b.iter().enumerate() {
-            cur[j + 1] = (prev[j] + (ca != *cb) as usize).min(prev[j + 1] + 1).min(cur[j] + 1);
+            cur[j + 1] = (prev[j] + (ca != *cb) as usize)
+                .min(prev[j + 1] + 1)
+                .min(cur[j] + 1);
         }
         prev = cur;
     }

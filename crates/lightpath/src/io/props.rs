@@ -84,7 +84,10 @@ impl Node {
         match self.take(name) {
             None => Ok(None),
             Some(p) => parse_float(&p.value).map(Some).ok_or_else(|| {
-                Error::scene(p.location.clone(), format!("`{name}`: expected a number, got `{}`", p.value))
+                Error::scene(
+                    p.location.clone(),
+                    format!("`{name}`: expected a number, got `{}`", p.value),
+                )
             }),
         }
     }
@@ -97,7 +100,10 @@ impl Node {
         match self.take(name) {
             None => Ok(None),
             Some(p) => p.value.trim().parse::<i64>().map(Some).map_err(|_| {
-                Error::scene(p.location.clone(), format!("`{name}`: expected an integer, got `{}`", p.value))
+                Error::scene(
+                    p.location.clone(),
+                    format!("`{name}`: expected an integer, got `{}`", p.value),
+                )
             }),
         }
     }
@@ -108,7 +114,10 @@ impl Node {
             Some(p) => match p.value.trim() {
                 "true" | "1" | "yes" => Ok(true),
                 "false" | "0" | "no" => Ok(false),
-                v => Err(Error::scene(p.location.clone(), format!("`{name}`: expected true or false, got `{v}`"))),
+                v => Err(Error::scene(
+                    p.location.clone(),
+                    format!("`{name}`: expected true or false, got `{v}`"),
+                )),
             },
         }
     }
@@ -118,7 +127,10 @@ impl Node {
         match self.take(name) {
             None => Ok(None),
             Some(p) => parse_floats(&p.value).map(Some).ok_or_else(|| {
-                Error::scene(p.location.clone(), format!("`{name}`: expected numbers, got `{}`", p.value))
+                Error::scene(
+                    p.location.clone(),
+                    format!("`{name}`: expected numbers, got `{}`", p.value),
+                )
             }),
         }
     }
@@ -147,7 +159,10 @@ impl Node {
         let used = self.used.borrow();
         for p in &self.properties {
             if !used.contains(&p.name) {
-                return Err(Error::scene(p.location.clone(), format!("unknown property `{}` on {}", p.name, self.describe())));
+                return Err(Error::scene(
+                    p.location.clone(),
+                    format!("unknown property `{}` on {}", p.name, self.describe()),
+                ));
             }
         }
         Ok(())
@@ -162,7 +177,10 @@ pub fn parse_float(s: &str) -> Option<f32> {
 
 /// Parses numbers separated by commas and/or whitespace.
 pub fn parse_floats(s: &str) -> Option<Vec<f32>> {
-    s.split(|c: char| c == ',' || c.is_whitespace()).filter(|t| !t.is_empty()).map(parse_float).collect()
+    s.split(|c: char| c == ',' || c.is_whitespace())
+        .filter(|t| !t.is_empty())
+        .map(parse_float)
+        .collect()
 }
 
 #[cfg(test)]
@@ -170,11 +188,19 @@ mod tests {
     use super::*;
 
     fn node() -> Node {
-        let loc = Location { file: "x.xml".into(), line: 3, column: 5 };
+        let loc = Location {
+            file: "x.xml".into(),
+            line: 3,
+            column: 5,
+        };
         let mut n = Node::new("shape", loc.clone());
         n.type_name = Some("sphere".into());
         for (k, v) in [("a", "1, 2 3"), ("b", "2"), ("c", "nan"), ("d", "x")] {
-            n.properties.push(Property { name: k.into(), value: v.into(), location: loc.clone() });
+            n.properties.push(Property {
+                name: k.into(),
+                value: v.into(),
+                location: loc.clone(),
+            });
         }
         n
     }
@@ -197,7 +223,10 @@ mod tests {
         n.take("b");
         n.take("c");
         let e = n.check_all_used().unwrap_err().to_string();
-        assert!(e.contains("unknown property `d`") && e.contains("<shape type=\"sphere\">"), "{e}");
+        assert!(
+            e.contains("unknown property `d`") && e.contains("<shape type=\"sphere\">"),
+            "{e}"
+        );
         n.take("d");
         n.check_all_used().unwrap();
     }

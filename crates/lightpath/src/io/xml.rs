@@ -13,7 +13,9 @@ use std::path::{Path, PathBuf};
 use std::rc::Rc;
 
 /// Elements whose `name` + `value` attributes form a property of the parent.
-const PROPERTY_TAGS: &[&str] = &["integer", "float", "string", "boolean", "bool", "vector", "color", "point", "rgb"];
+const PROPERTY_TAGS: &[&str] = &[
+    "integer", "float", "string", "boolean", "bool", "vector", "color", "point", "rgb",
+];
 
 struct Reader {
     ids: HashMap<String, Rc<Node>>,
@@ -25,27 +27,43 @@ struct Reader {
 
 /// Parses `path` and returns its root element as a node.
 pub fn read_file(path: &Path, defines: &[(String, String)]) -> Result<Rc<Node>> {
-    let mut reader = Reader { ids: HashMap::new(), stack: Vec::new(), defines: defines.to_vec() };
+    let mut reader = Reader {
+        ids: HashMap::new(),
+        stack: Vec::new(),
+        defines: defines.to_vec(),
+    };
     let root = reader.read(path, None)?;
     Ok(root)
 }
 
 /// Parses XML text as if it were the file `path` (relative paths resolve from there).
 pub fn read_str(text: &str, path: &Path, defines: &[(String, String)]) -> Result<Rc<Node>> {
-    let mut reader = Reader { ids: HashMap::new(), stack: Vec::new(), defines: defines.to_vec() };
+    let mut reader = Reader {
+        ids: HashMap::new(),
+        stack: Vec::new(),
+        defines: defines.to_vec(),
+    };
     reader.parse(text, path)
 }
 
 impl Reader {
     fn read(&mut self, path: &Path, included_from: Option<&Location>) -> Result<Rc<Node>> {
         let text = std::fs::read_to_string(path).map_err(|e| match included_from {
-            Some(loc) => Error::scene(loc.clone(), format!("cannot read included file {}: {e}", path.display())),
+            Some(loc) => Error::scene(
+                loc.clone(),
+                format!("cannot read included file {}: {e}", path.display()),
+            ),
             None => Error::io(path, e),
         })?;
         let canonical = path.canonicalize().unwrap_or_else(|_| path.to_path_buf());
         if self.stack.contains(&canonical) {
-            let loc = included_from.cloned().unwrap_or_else(|| location(path, 0, 0));
-            return Err(Error::scene(loc, format!("{} includes itself", path.display())));
+            let loc = included_from
+                .cloned()
+                .unwrap_or_else(|| location(path, 0, 0));
+            return Err(Error::scene(
+                loc,
+                format!("{} includes itself", path.display()),
+            ));
         }
         self.stack.push(canonical);
         let node = self.parse(&text, path)?;
@@ -56,7 +74,10 @@ impl Reader {
     fn parse(&mut self, text: &str, path: &Path) -> Result<Rc<Node>> {
         let doc = roxmltree::Document::parse(text).map_err(|e| {
             let pos = e.pos();
-            Error::scene(location(path, pos.row, pos.col), format!("malformed XML: {e}"))
+            Error::scene(
+                location(path, pos.row, pos.col),
+                format!("malformed XML: {e}"),
+            )
         })?;
         self.element(&doc, doc.root_element(), path)
     }
@@ -75,7 +96,12 @@ impl Reader {
         out
     }
 
-    fn element(&mut self, doc: &roxmltree::Document, el: roxmltree::Node, path: &Path) -> Result<Rc<Node>> {
+    fn element(
+        &mut self,
+        doc: &roxmltree::Document,
+        el: roxmltree::Node,
+        path: &Path,
+    ) -> Result<Rc<Node>> {
         let loc = node_location(doc, el, path);
         let tag = el.tag_name().name();
         let mut node = Node::new(tag, loc.clone());
@@ -95,7 +121,10 @@ impl Reader {
         for child in el.children() {
             if child.is_text() {
                 if child.text().is_some_and(|t| !t.trim().is_empty()) {
-                    return Err(Error::scene(node_location(doc, child, path), "unexpected text in scene file"));
+                    return Err(Error::scene(
+                        node_location(doc, child, path),
+                        "unexpected text in scene file",
+                    ));
                 }
                 continue;
             }
@@ -105,27 +134,44 @@ impl Reader {
             let ctag = child.tag_name().name();
             let cloc = node_location(doc, child, path);
             if PROPERTY_TAGS.contains(&ctag) {
-                let name = child
-                    .attribute("name")
-                    .ok_or_else(|| Error::scene(cloc.clone(), format!("<{ctag}> needs a `name` attribute")))?;
-                let value = child
-                    .attribute("value")
-                    .ok_or_else(|| Error::scene(cloc.clone(), format!("<{ctag} name=\"{name}\"> needs a `value` attribute")))?;
-                if let Some(a) = child.attributes().find(|a| a.name() != "name" && a.name() != "value") {
-                    return Err(Error::scene(attr_location(doc, &a, path), format!("unknown attribute `{}` on <{ctag}>", a.name())));
+                let name = child.attribute("name").ok_or_else(|| {
+                    Error::scene(cloc.clone(), format!("<{ctag}> needs a `name` attribute"))
+                })?;
+                let value = child.attribute("value").ok_or_else(|| {
+                    Error::scene(
+                        cloc.clone(),
+                        format!("<{ctag} name=\"{name}\"> needs a `value` attribute"),
+                    )
+                })?;
+                if let Some(a) = child
+                    .attributes()
+                    .find(|a| a.name() != "name" && a.name() != "value")
+                {
+                    return Err(Error::scene(
+                        attr_location(doc, &a, path),
+                        format!("unknown attribute `{}` on <{ctag}>", a.name()),
+                    ));
                 }
-                node.properties.push(Property { name: name.to_string(), value: self.substitute(value), location: cloc });
+                node.properties.push(Property {
+                    name: name.to_string(),
+                    value: self.substitute(value),
+                    location: cloc,
+                });
             } else if ctag == "ref" {
-                let id = child.attribute("id").ok_or_else(|| Error::scene(cloc.clone(), "<ref> needs an `id` attribute"))?;
-                let target = self
-                    .ids
-                    .get(id)
-                    .ok_or_else(|| Error::scene(cloc.clone(), format!("<ref id=\"{id}\">: no object with this id is defined before")))?;
+                let id = child
+                    .attribute("id")
+                    .ok_or_else(|| Error::scene(cloc.clone(), "<ref> needs an `id` attribute"))?;
+                let target = self.ids.get(id).ok_or_else(|| {
+                    Error::scene(
+                        cloc.clone(),
+                        format!("<ref id=\"{id}\">: no object with this id is defined before"),
+                    )
+                })?;
                 node.children.push(target.clone());
             } else if ctag == "include" {
-                let file = child
-                    .attribute("filename")
-                    .ok_or_else(|| Error::scene(cloc.clone(), "<include> needs a `filename` attribute"))?;
+                let file = child.attribute("filename").ok_or_else(|| {
+                    Error::scene(cloc.clone(), "<include> needs a `filename` attribute")
+                })?;
                 let inc_path = resolve_path(path, &self.substitute(file));
                 let inc = self.read(&inc_path, Some(&cloc))?;
                 node.children.extend(inc.children.iter().cloned());
@@ -154,7 +200,11 @@ pub fn resolve_path(scene_file: &Path, file: &str) -> PathBuf {
 }
 
 fn location(path: &Path, line: u32, column: u32) -> Location {
-    Location { file: path.to_path_buf(), line, column }
+    Location {
+        file: path.to_path_buf(),
+        line,
+        column,
+    }
 }
 
 fn node_location(doc: &roxmltree::Document, node: roxmltree::Node, path: &Path) -> Location {

@@ -120,7 +120,16 @@ impl Bounds3 {
     /// and exit parameters clipped to `[t_min, t_max]`, or `None` on a miss. The exit is
     /// widened by `1 + 2γ(3)` so rounding never makes a grazing ray miss (pbrt's rule).
     #[inline]
-    pub fn intersect_p(&self, origin: Vec3, inv_dir: Vec3, t_min: f32, t_max: f32) -> Option<(f32, f32)> {
+    pub fn intersect_p(
+        &self,
+        origin: Vec3,
+        inv_dir: Vec3,
+        t_min: f32,
+        t_max: f32,
+    ) -> Option<(f32, f32)> {
+        if self.is_empty() {
+            return None;
+        }
         let t0 = (self.min - origin) * inv_dir;
         let t1 = (self.max - origin) * inv_dir;
         let tnear = t0.min(t1);

@@ -271,8 +271,7 @@ impl Transform {
         let mut err = [0.0f32; 3];
         for (i, row) in r.iter().enumerate() {
             let a = row.truncate().abs();
-            err[i] = (gamma(3) + 1.0) * a.dot(p_error)
-                + gamma(3) * (a.dot(p.abs()) + row.w.abs());
+            err[i] = (gamma(3) + 1.0) * a.dot(p_error) + gamma(3) * (a.dot(p.abs()) + row.w.abs());
         }
         (self.point(p), Vec3::from_array(err))
     }
@@ -293,7 +292,11 @@ impl Transform {
         let t = self.m.w_axis.truncate();
         let mut min = t;
         let mut max = t;
-        let cols = [self.m.x_axis.truncate(), self.m.y_axis.truncate(), self.m.z_axis.truncate()];
+        let cols = [
+            self.m.x_axis.truncate(),
+            self.m.y_axis.truncate(),
+            self.m.z_axis.truncate(),
+        ];
         for (axis, col) in cols.iter().enumerate() {
             let a = *col * b.min[axis];
             let c = *col * b.max[axis];
@@ -310,7 +313,8 @@ mod tests {
     use proptest::prelude::*;
 
     fn close(a: Vec3, b: Vec3, eps: f32) -> bool {
-        (a - b).abs().max_element() <= eps * (1.0 + a.abs().max_element().max(b.abs().max_element()))
+        (a - b).abs().max_element()
+            <= eps * (1.0 + a.abs().max_element().max(b.abs().max_element()))
     }
 
     fn arb_affine() -> impl Strategy<Value = Transform> {
@@ -404,7 +408,8 @@ mod tests {
     fn look_at_maps_axes() {
         let t = Transform::look_at(Vec3::ZERO, Vec3::Z, Vec3::Y).unwrap();
         assert!(t.is_identity());
-        let t = Transform::look_at(Vec3::new(1.0, 2.0, 3.0), Vec3::new(1.0, 2.0, 10.0), Vec3::Y).unwrap();
+        let t = Transform::look_at(Vec3::new(1.0, 2.0, 3.0), Vec3::new(1.0, 2.0, 10.0), Vec3::Y)
+            .unwrap();
         assert!(close(t.vector(Vec3::Z), Vec3::Z, 1e-6));
         assert!(close(t.point(Vec3::ZERO), Vec3::new(1.0, 2.0, 3.0), 1e-6));
         assert!(Transform::look_at(Vec3::ZERO, Vec3::Y, Vec3::Y).is_none());
@@ -418,21 +423,35 @@ mod tests {
 
     #[test]
     fn mirror_swaps_handedness() {
-        assert!(Transform::scale(Vec3::new(-1.0, 1.0, 1.0)).unwrap().swaps_handedness());
+        assert!(Transform::scale(Vec3::new(-1.0, 1.0, 1.0))
+            .unwrap()
+            .swaps_handedness());
         assert!(!Transform::rotate(Vec3::Y, 30.0).unwrap().swaps_handedness());
     }
 
     #[test]
     fn axis_conversion() {
-        let t = Transform::convert_axes(AxisConvention::ZUpRightHanded, AxisConvention::YUpRightHanded);
+        let t = Transform::convert_axes(
+            AxisConvention::ZUpRightHanded,
+            AxisConvention::YUpRightHanded,
+        );
         // Blender's up (+Z) becomes +Y, its forward (+Y) becomes -Z.
         assert!(close(t.vector(Vec3::Z), Vec3::Y, 1e-6));
         assert!(close(t.vector(Vec3::Y), -Vec3::Z, 1e-6));
         assert!(!t.swaps_handedness());
-        let l = Transform::convert_axes(AxisConvention::YUpLeftHanded, AxisConvention::YUpRightHanded);
+        let l = Transform::convert_axes(
+            AxisConvention::YUpLeftHanded,
+            AxisConvention::YUpRightHanded,
+        );
         assert!(l.swaps_handedness());
-        let back = Transform::convert_axes(AxisConvention::YUpRightHanded, AxisConvention::ZUpLeftHanded);
-        let there = Transform::convert_axes(AxisConvention::ZUpLeftHanded, AxisConvention::YUpRightHanded);
+        let back = Transform::convert_axes(
+            AxisConvention::YUpRightHanded,
+            AxisConvention::ZUpLeftHanded,
+        );
+        let there = Transform::convert_axes(
+            AxisConvention::ZUpLeftHanded,
+            AxisConvention::YUpRightHanded,
+        );
         assert!(there.then(&back).is_identity());
     }
 

@@ -15,7 +15,11 @@ impl Distribution1D {
     /// From non-negative cell values; an all-zero function samples uniformly.
     pub fn new(values: &[f32]) -> Self {
         let n = values.len().max(1);
-        let func: Vec<f32> = if values.is_empty() { vec![0.0] } else { values.iter().map(|v| v.max(0.0)).collect() };
+        let func: Vec<f32> = if values.is_empty() {
+            vec![0.0]
+        } else {
+            values.iter().map(|v| v.max(0.0)).collect()
+        };
         let mut cdf = vec![0.0f32; n + 1];
         let mut acc = 0.0f64;
         for i in 0..n {
@@ -33,7 +37,11 @@ impl Distribution1D {
             }
         }
         cdf[n] = 1.0;
-        Distribution1D { func, cdf, integral }
+        Distribution1D {
+            func,
+            cdf,
+            integral,
+        }
     }
 
     pub fn len(&self) -> usize {
@@ -52,10 +60,18 @@ impl Distribution1D {
     /// Samples a continuous position in [0, 1); returns (x, density, cell).
     pub fn sample_continuous(&self, u: f32) -> (f32, f32, usize) {
         // The last cell whose cdf start is <= u.
-        let cell = self.cdf.partition_point(|&c| c <= u).saturating_sub(1).min(self.func.len() - 1);
+        let cell = self
+            .cdf
+            .partition_point(|&c| c <= u)
+            .saturating_sub(1)
+            .min(self.func.len() - 1);
         let (c0, c1) = (self.cdf[cell], self.cdf[cell + 1]);
         let du = if c1 > c0 { (u - c0) / (c1 - c0) } else { 0.0 };
-        let pdf = if self.integral > 0.0 { self.func[cell] / self.integral } else { 1.0 };
+        let pdf = if self.integral > 0.0 {
+            self.func[cell] / self.integral
+        } else {
+            1.0
+        };
         let x = ((cell as f32 + du) / self.func.len() as f32).min(1.0 - f32::EPSILON);
         (x, pdf, cell)
     }
@@ -63,7 +79,11 @@ impl Distribution1D {
     /// Density at `x` in [0, 1).
     pub fn pdf(&self, x: f32) -> f32 {
         let cell = ((x * self.func.len() as f32) as usize).min(self.func.len() - 1);
-        if self.integral > 0.0 { self.func[cell] / self.integral } else { 1.0 }
+        if self.integral > 0.0 {
+            self.func[cell] / self.integral
+        } else {
+            1.0
+        }
     }
 }
 
@@ -77,9 +97,15 @@ pub struct Distribution2D {
 impl Distribution2D {
     /// From `width * height` values, row-major, row 0 at v = 0.
     pub fn new(values: &[f32], width: usize, height: usize) -> Self {
-        let conditional: Vec<Distribution1D> = (0..height).map(|y| Distribution1D::new(&values[y * width..(y + 1) * width])).collect();
-        let marginal = Distribution1D::new(&conditional.iter().map(|c| c.integral()).collect::<Vec<_>>());
-        Distribution2D { conditional, marginal }
+        let conditional: Vec<Distribution1D> = (0..height)
+            .map(|y| Distribution1D::new(&values[y * width..(y + 1) * width]))
+            .collect();
+        let marginal =
+            Distribution1D::new(&conditional.iter().map(|c| c.integral()).collect::<Vec<_>>());
+        Distribution2D {
+            conditional,
+            marginal,
+        }
     }
 
     /// Samples (u, v) in [0, 1)² with its density.
@@ -128,7 +154,10 @@ mod tests {
         let mut sum = 0.0;
         for y in 0..n {
             for x in 0..n {
-                sum += d.pdf(Vec2::new((x as f32 + 0.5) / n as f32, (y as f32 + 0.5) / n as f32));
+                sum += d.pdf(Vec2::new(
+                    (x as f32 + 0.5) / n as f32,
+                    (y as f32 + 0.5) / n as f32,
+                ));
             }
         }
         assert!((sum / (n * n) as f32 - 1.0).abs() < 1e-3);

@@ -63,7 +63,9 @@ impl Sampler {
     /// A copy with another seed.
     pub fn with_seed(&self, seed: u64) -> Sampler {
         match self {
-            Sampler::Independent(s) => Sampler::Independent(IndependentSampler::new(s.samples_per_pixel, seed)),
+            Sampler::Independent(s) => {
+                Sampler::Independent(IndependentSampler::new(s.samples_per_pixel, seed))
+            }
         }
     }
 }

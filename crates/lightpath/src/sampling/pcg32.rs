@@ -65,7 +65,12 @@ mod tests {
         // The reference output of pcg32-demo (seed 42, stream 54).
         let mut rng = Pcg32::new(42, 54);
         let expected = [
-            0xa15c02b7u32, 0x7b47f409, 0xba1d3330, 0x83d2f293, 0xbfa4784b, 0xcbed606e,
+            0xa15c02b7u32,
+            0x7b47f409,
+            0xba1d3330,
+            0x83d2f293,
+            0xbfa4784b,
+            0xcbed606e,
         ];
         for e in expected {
             assert_eq!(rng.next_u32(), e);

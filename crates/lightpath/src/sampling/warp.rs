@@ -1,6 +1,6 @@
 //! Warps from the unit square to other domains, each with its density.
 
-use crate::math::{PI, INV_PI};
+use crate::math::{INV_PI, PI};
 use glam::{Vec2, Vec3};
 
 /// Shirley–Chiu concentric map to the unit disk (area-preserving, low distortion).
@@ -97,9 +97,13 @@ mod tests {
     #[test]
     fn disk_is_uniform() {
         // The inner disk of radius 1/2 holds a quarter of the area.
-        let frac = uniform_in(200_000, square_to_uniform_disk_concentric, |p| p.length() < 0.5);
+        let frac = uniform_in(200_000, square_to_uniform_disk_concentric, |p| {
+            p.length() < 0.5
+        });
         assert!((frac - 0.25).abs() < 0.005, "{frac}");
-        let frac = uniform_in(200_000, square_to_uniform_disk_concentric, |p| p.x > 0.0 && p.y > 0.0);
+        let frac = uniform_in(200_000, square_to_uniform_disk_concentric, |p| {
+            p.x > 0.0 && p.y > 0.0
+        });
         assert!((frac - 0.25).abs() < 0.005, "{frac}");
     }
 
@@ -108,7 +112,9 @@ mod tests {
         // A square (4 blades, rotated 45°) is [-s, s]^2 with s = 1/sqrt 2.
         let s = std::f32::consts::FRAC_1_SQRT_2;
         let f = |u| square_to_uniform_polygon(u, 4, PI / 4.0);
-        let frac = uniform_in(200_000, f, |p| p.x.abs() <= s + 1e-5 && p.y.abs() <= s + 1e-5);
+        let frac = uniform_in(200_000, f, |p| {
+            p.x.abs() <= s + 1e-5 && p.y.abs() <= s + 1e-5
+        });
         assert_eq!(frac, 1.0);
         let frac = uniform_in(200_000, f, |p| p.x > 0.0 && p.y > 0.0);
         assert!((frac - 0.25).abs() < 0.005, "{frac}");

@@ -48,7 +48,10 @@ impl SceneBuilder {
 
     /// Places a shape; returns the instance index.
     pub fn add_instance(&mut self, shape: ShapeId, render_from_object: Transform) -> u32 {
-        self.instances.push(Instance::new(self.shapes[shape.0].clone(), render_from_object));
+        self.instances.push(Instance::new(
+            self.shapes[shape.0].clone(),
+            render_from_object,
+        ));
         self.instances.len() as u32 - 1
     }
 

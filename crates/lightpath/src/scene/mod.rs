@@ -23,7 +23,11 @@ pub struct Instance {
 impl Instance {
     pub fn new(shape: Arc<Shape>, render_from_object: Transform) -> Self {
         let bounds = render_from_object.bounds(&shape.bounds());
-        Instance { shape, render_from_object, bounds }
+        Instance {
+            shape,
+            render_from_object,
+            bounds,
+        }
     }
 
     /// Closest hit in object space; the returned `t` is valid for the render-space ray
@@ -59,7 +63,10 @@ impl Instance {
             direction: object_from_render.vector(ray.direction),
             ..*ray
         };
-        let mut si = self.shape.interaction(&r, hit).transformed(&self.render_from_object);
+        let mut si = self
+            .shape
+            .interaction(&r, hit)
+            .transformed(&self.render_from_object);
         si.wo = -ray.direction.normalize();
         si
     }
@@ -79,14 +86,32 @@ pub struct Scene {
 }
 
 impl Scene {
-    pub(crate) fn new(instances: Vec<Instance>, camera: Option<Camera>, accel: crate::accel::AccelKind) -> Scene {
+    pub(crate) fn new(
+        instances: Vec<Instance>,
+        camera: Option<Camera>,
+        accel: crate::accel::AccelKind,
+    ) -> Scene {
         let finite = |b: &Bounds3| b.min.is_finite() && b.max.is_finite();
-        let bounded: Vec<u32> = (0..instances.len() as u32).filter(|&i| finite(&instances[i as usize].bounds)).collect();
-        let unbounded: Vec<u32> = (0..instances.len() as u32).filter(|&i| !finite(&instances[i as usize].bounds)).collect();
-        let boxes: Vec<Bounds3> = bounded.iter().map(|&i| instances[i as usize].bounds).collect();
+        let bounded: Vec<u32> = (0..instances.len() as u32)
+            .filter(|&i| finite(&instances[i as usize].bounds))
+            .collect();
+        let unbounded: Vec<u32> = (0..instances.len() as u32)
+            .filter(|&i| !finite(&instances[i as usize].bounds))
+            .collect();
+        let boxes: Vec<Bounds3> = bounded
+            .iter()
+            .map(|&i| instances[i as usize].bounds)
+            .collect();
         let tlas = Accel::build(accel, &boxes);
         let bounds = boxes.iter().fold(Bounds3::EMPTY, |a, b| a.union(b));
-        Scene { instances, tlas, bounded, unbounded, camera, bounds }
+        Scene {
+            instances,
+            tlas,
+            bounded,
+            unbounded,
+            camera,
+            bounds,
+        }
     }
 
     /// Bounds of all bounded instances.
@@ -101,7 +126,11 @@ impl Scene {
     }
 
     /// The closest hit, counting traversal work into `stats`.
-    pub fn intersect_with_stats(&self, ray: &Ray, stats: &mut RayStats) -> Option<SurfaceInteraction> {
+    pub fn intersect_with_stats(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
+    ) -> Option<SurfaceInteraction> {
         let mut best: Option<(u32, ShapeHit)> = None;
         let mut t_max = ray.t_max;
         for &i in &self.unbounded {
@@ -135,11 +164,17 @@ impl Scene {
     /// Whether anything blocks the ray within its range (shadow rays).
     pub fn occluded(&self, ray: &Ray) -> bool {
         let stats = &mut RayStats::default();
-        if self.unbounded.iter().any(|&i| self.instances[i as usize].occluded(ray, stats)) {
+        if self
+            .unbounded
+            .iter()
+            .any(|&i| self.instances[i as usize].occluded(ray, stats))
+        {
             return true;
         }
         let mut local = RayStats::default();
-        self.tlas.occluded(ray, &mut local, |k| self.instances[self.bounded[k as usize] as usize].occluded(ray, stats))
+        self.tlas.occluded(ray, &mut local, |k| {
+            self.instances[self.bounded[k as usize] as usize].occluded(ray, stats)
+        })
     }
 
     /// Bytes used by the top-level structure and every distinct mesh's BLAS.
