@@ -12,7 +12,10 @@ fn lightpath(args: &[&str], dir: &Path) -> Output {
 }
 
 fn repo_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").canonicalize().unwrap()
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .canonicalize()
+        .unwrap()
 }
 
 fn temp_dir(name: &str) -> PathBuf {
@@ -38,18 +41,36 @@ fn assert_rejected(name: &str, text: &str, line: u32, needle: &str) {
     let out = lightpath(&["render", "scene.xml", "-o", "out.png"], &dir);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{name}: should fail");
-    assert_eq!(stderr.trim().lines().count(), 1, "{name}: one line, got {stderr}");
-    assert!(stderr.contains(&format!("scene.xml:{line}:")), "{name}: location missing in {stderr}");
-    assert!(stderr.contains(needle), "{name}: `{needle}` missing in {stderr}");
+    assert_eq!(
+        stderr.trim().lines().count(),
+        1,
+        "{name}: one line, got {stderr}"
+    );
+    assert!(
+        stderr.contains(&format!("scene.xml:{line}:")),
+        "{name}: location missing in {stderr}"
+    );
+    assert!(
+        stderr.contains(needle),
+        "{name}: `{needle}` missing in {stderr}"
+    );
     assert!(!stderr.contains("panicked"), "{name}: {stderr}");
     assert!(!dir.join("out.png").exists(), "{name}: output written");
-    let leftovers: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+    let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
     assert_eq!(leftovers.len(), 1, "{name}: stray files {leftovers:?}");
 }
 
 #[test]
 fn malformed_scenes_are_reported_with_location() {
-    assert_rejected("bad-xml", "<integrator type=\"aov\">\n<scene>\n</integrator>\n", 3, "malformed XML");
+    assert_rejected(
+        "bad-xml",
+        "<integrator type=\"aov\">\n<scene>\n</integrator>\n",
+        3,
+        "malformed XML",
+    );
     assert_rejected(
         "unknown-shape",
         &scene_with("<instance>\n<shape type=\"spehre\"/>\n</instance>"),
@@ -104,11 +125,20 @@ fn own_test_scenes_pass() {
     let root = repo_root();
     let out_dir = temp_dir("own");
     let out = lightpath(
-        &["test", root.join("tests/scenes").to_str().unwrap(), "--out-dir", out_dir.to_str().unwrap()],
+        &[
+            "test",
+            root.join("tests/scenes").to_str().unwrap(),
+            "--out-dir",
+            out_dir.to_str().unwrap(),
+        ],
         &out_dir,
     );
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{stdout}{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert!(stdout.contains("4 passed, 0 failed"), "{stdout}");
 }
 
@@ -118,8 +148,16 @@ fn test_command_fails_on_a_wrong_image() {
     let root = repo_root();
     let dir = temp_dir("wrong");
     let text = std::fs::read_to_string(root.join("tests/scenes/sphere_ellipsoid.xml")).unwrap();
-    std::fs::write(dir.join("sphere_ellipsoid.xml"), text.replace("angle=\"30\"", "angle=\"60\"")).unwrap();
-    std::fs::copy(root.join("tests/scenes/sphere_ellipsoid_ref.exr"), dir.join("sphere_ellipsoid_ref.exr")).unwrap();
+    std::fs::write(
+        dir.join("sphere_ellipsoid.xml"),
+        text.replace("angle=\"30\"", "angle=\"60\""),
+    )
+    .unwrap();
+    std::fs::copy(
+        root.join("tests/scenes/sphere_ellipsoid_ref.exr"),
+        dir.join("sphere_ellipsoid_ref.exr"),
+    )
+    .unwrap();
     let out = lightpath(&["test", "sphere_ellipsoid.xml", "--out-dir", "out"], &dir);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(!out.status.success());
@@ -130,7 +168,11 @@ fn test_command_fails_on_a_wrong_image() {
 fn default_scene_renders_png_and_exr() {
     let dir = temp_dir("default");
     let out = lightpath(&["render", "--spp", "1", "--quiet"], &dir);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert!(out.stderr.is_empty(), "--quiet prints nothing");
     let png = std::fs::read(dir.join("render.png")).unwrap();
     assert_eq!(&png[1..4], b"PNG");
@@ -144,7 +186,10 @@ fn default_scene_renders_png_and_exr() {
 fn compare_prints_metrics() {
     let root = repo_root();
     let r = root.join("tests/scenes/sphere_ellipsoid_ref.exr");
-    let out = lightpath(&["compare", r.to_str().unwrap(), r.to_str().unwrap()], &root);
+    let out = lightpath(
+        &["compare", r.to_str().unwrap(), r.to_str().unwrap()],
+        &root,
+    );
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success());
     assert!(stdout.contains("mae    0.000000e0"), "{stdout}");
@@ -155,8 +200,22 @@ fn threads_do_not_change_the_image() {
     let dir = temp_dir("threads");
     let scene = repo_root().join("tests/scenes/shapes_normals.xml");
     for (t, name) in [("1", "a.exr"), ("2", "b.exr")] {
-        let out = lightpath(&["render", scene.to_str().unwrap(), "-q", "--threads", t, "-o", name], &dir);
+        let out = lightpath(
+            &[
+                "render",
+                scene.to_str().unwrap(),
+                "-q",
+                "--threads",
+                t,
+                "-o",
+                name,
+            ],
+            &dir,
+        );
         assert!(out.status.success());
     }
-    assert_eq!(std::fs::read(dir.join("a.exr")).unwrap(), std::fs::read(dir.join("b.exr")).unwrap());
+    assert_eq!(
+        std::fs::read(dir.join("a.exr")).unwrap(),
+        std::fs::read(dir.join("b.exr")).unwrap()
+    );
 }

@@ -22,14 +22,25 @@ pub struct AmbientOcclusion {
 }
 
 impl AmbientOcclusion {
-    pub fn li(&self, scene: &Scene, ray: &Ray, sampler: &mut Sampler, stats: &mut RayStats) -> Vec3 {
+    pub fn li(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        sampler: &mut Sampler,
+        stats: &mut RayStats,
+    ) -> Vec3 {
         let Some(si) = scene.intersect_with_stats(ray, stats) else {
             return Vec3::ONE;
         };
         // The hemisphere on the side the ray came from.
         let n = if si.n.dot(si.wo) < 0.0 { -si.n } else { si.n };
-        let ns = if si.shading_n.dot(n) < 0.0 { -si.shading_n } else { si.shading_n };
-        let wi = Frame::from_normal(ns).to_world(warp::square_to_cosine_hemisphere(sampler.next_2d()));
+        let ns = if si.shading_n.dot(n) < 0.0 {
+            -si.shading_n
+        } else {
+            si.shading_n
+        };
+        let wi =
+            Frame::from_normal(ns).to_world(warp::square_to_cosine_hemisphere(sampler.next_2d()));
         if wi.dot(n) <= 0.0 {
             return Vec3::ZERO;
         }

@@ -498,3 +498,69 @@ impl Builder {
 pub fn default_accel() -> AccelKind {
     AccelKind::default()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn temp_dir(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("lightpath-lw-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    #[test]
+    fn include_ref_and_attribute_or_element_properties() {
+        let dir = temp_dir("include");
+        std::fs::write(
+            dir.join("parts.xml"),
+            r#"<scene><shape type="sphere" id="ball"/><camera type="perspective" width="20"><integer name="height" value="10"/></camera></scene>"#,
+        )
+        .unwrap();
+        std::fs::write(
+            dir.join("main.xml"),
+            r#"<test type="image" id="t" mae="0.5"><integrator type="aov" variable="$var"><scene>
+                <include filename="parts.xml"/>
+                <instance><ref id="ball"/></instance>
+                <instance><ref id="ball"/><transform><translate x="3"/></transform></instance>
+            </scene><sampler type="independent" count="2"/></integrator></test>"#,
+        )
+        .unwrap();
+        let options = LoadOptions {
+            defines: vec![("var".into(), "normals".into())],
+            ..Default::default()
+        };
+        let loaded = crate::io::load_scene(&dir.join("main.xml"), &options).unwrap();
+        assert_eq!(loaded.test.as_ref().unwrap().mae, 0.5);
+        assert_eq!(loaded.scene.instances.len(), 2);
+        assert!(Arc::ptr_eq(
+            &loaded.scene.instances[0].shape,
+            &loaded.scene.instances[1].shape
+        ));
+        assert_eq!(
+            loaded.scene.camera.as_ref().unwrap().resolution(),
+            UVec2::new(20, 10)
+        );
+        assert_eq!(loaded.sampler.samples_per_pixel(), 2);
+    }
+
+    #[test]
+    fn errors_name_file_line_and_column() {
+        let dir = temp_dir("errors");
+        let cases = [
+            ("<integrator type=\"aov\" variable=\"normals\">\n<scene><camera type=\"perspective\"/>\n  <instance><ref id=\"nope\"/></instance></scene><sampler type=\"independent\"/></integrator>", ":3:13", "no object with this id"),
+            ("<integrator type=\"aov\" variable=\"nrmals\"><scene/><sampler type=\"independent\"/></integrator>", ":1:1", "unknown aov variable"),
+            ("<integrator type=\"aov\" variable=\"normals\"><scene><camera type=\"fisheye\" mapping=\"orthographic\" fov=\"270\"/></scene><sampler type=\"independent\"/></integrator>", ":1:50", "fisheye fov"),
+            ("<integrator type=\"aov\" variable=\"normals\"><include filename=\"missing.xml\"/></integrator>", ":1:43", "cannot read included file"),
+        ];
+        for (text, loc, needle) in cases {
+            std::fs::write(dir.join("s.xml"), text).unwrap();
+            let e = crate::io::load_scene(&dir.join("s.xml"), &LoadOptions::default())
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(&format!("s.xml{loc}")), "{e}");
+            assert!(e.contains(needle), "{e}");
+        }
+    }
+}
