@@ -15,10 +15,13 @@ pub mod film;
 pub mod geometry;
 pub mod integrator;
 pub mod io;
+pub mod light;
+pub mod material;
 pub mod math;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod texture;
 
 pub use error::{Error, Location, Result};
 

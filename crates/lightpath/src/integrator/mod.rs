@@ -3,10 +3,12 @@
 mod ambient_occlusion;
 mod aov;
 mod camera_direction;
+mod direct;
 
 pub use ambient_occlusion::AmbientOcclusion;
 pub use aov::{Aov, AovVariable};
 pub use camera_direction::CameraDirection;
+pub use direct::{power_heuristic, Direct};
 
 use crate::accel::RayStats;
 use crate::math::Ray;
@@ -20,6 +22,7 @@ pub enum Integrator {
     Aov(Aov),
     AmbientOcclusion(AmbientOcclusion),
     CameraDirection(CameraDirection),
+    Direct(Direct),
 }
 
 impl Integrator {
@@ -36,6 +39,7 @@ impl Integrator {
             Integrator::Aov(i) => i.li(scene, ray, stats),
             Integrator::AmbientOcclusion(i) => i.li(scene, ray, sampler, stats),
             Integrator::CameraDirection(i) => i.li(ray, sampler),
+            Integrator::Direct(i) => i.li(scene, ray, sampler, stats),
         }
     }
 

@@ -33,11 +33,14 @@ use crate::camera::{
 };
 use crate::error::{Error, Result};
 use crate::geometry::{Cuboid, Cylinder, Disk, Plane, Rectangle, Shape, Sphere, TriangleMesh};
-use crate::integrator::{AmbientOcclusion, Aov, AovVariable, CameraDirection, Integrator};
+use crate::integrator::{AmbientOcclusion, Aov, AovVariable, CameraDirection, Direct, Integrator};
+use crate::light::{DirectionalLight, Environment, Light, PointLight, SpotLight};
+use crate::material::{Diffuse, Material};
 use crate::math::Transform;
 use crate::sampling::{Distribution2D, IndependentSampler, Sampler};
 use crate::scene::{Instance, Scene};
-use glam::{UVec2, Vec3};
+use crate::texture::{BorderMode, Checkerboard, FilterMode, ImageTexture, Texture};
+use glam::{UVec2, Vec2, Vec3};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
@@ -53,6 +56,9 @@ pub fn build(root: &Rc<Node>, path: &Path, options: &LoadOptions) -> Result<Load
         options: options.clone(),
         shapes: HashMap::new(),
         meshes: HashMap::new(),
+        textures: HashMap::new(),
+        materials: HashMap::new(),
+        images: HashMap::new(),
     };
     b.root(root)
 }
@@ -64,6 +70,10 @@ struct Builder {
     shapes: HashMap<*const Node, Arc<Shape>>,
     /// Meshes by file and smoothing, so a file named by many instances loads once.
     meshes: HashMap<(PathBuf, bool), Arc<Shape>>,
+    textures: HashMap<*const Node, Arc<Texture>>,
+    materials: HashMap<*const Node, Arc<Material>>,
+    /// Images by file and colour space, loaded once.
+    images: HashMap<(PathBuf, bool), Arc<crate::film::Image>>,
 }
 
 fn expect_tag(node: &Node, tag: &str) -> Result<()> {
@@ -166,12 +176,13 @@ impl Builder {
                 }
                 Integrator::AmbientOcclusion(AmbientOcclusion { distance })
             }
-            Some(t @ ("direct" | "pathtracer" | "albedo" | "normals")) => {
+            Some("direct") => Integrator::Direct(Direct),
+            Some(t @ ("pathtracer" | "albedo" | "normals")) => {
                 return Err(node.error(format!(
-                    "integrator `{t}` is not supported yet (supported: aov, ao, camera)"
+                    "integrator `{t}` is not supported yet (supported: aov, ao, camera, direct)"
                 )));
             }
-            _ => return Err(unknown_type(node, &["aov", "ao", "camera"])),
+            _ => return Err(unknown_type(node, &["aov", "ao", "camera", "direct"])),
         };
         node.check_all_used()?;
         let sampler_node = self.single_child(node, "sampler")?;
@@ -211,6 +222,8 @@ impl Builder {
         node.check_all_used()?;
         let mut camera = None;
         let mut instances = Vec::new();
+        let mut lights = Vec::new();
+        let mut weights = Vec::new();
         for child in &node.children {
             match child.tag.as_str() {
                 "camera" => {
@@ -221,8 +234,13 @@ impl Builder {
                 }
                 "instance" => instances.push(self.instance(child)?),
                 // Shapes defined at scene level (with an id) are for later <ref>s.
-                "shape" if child.id.is_some() => {}
-                "bsdf" | "texture" | "light" | "emission" => {
+                "shape" | "bsdf" | "texture" if child.id.is_some() => {}
+                "light" => {
+                    let (light, weight) = self.light(child)?;
+                    lights.push(light);
+                    weights.push(weight);
+                }
+                "emission" => {
                     return Err(child.error(format!("<{}> is not supported yet", child.tag)));
                 }
                 other => {
@@ -231,7 +249,224 @@ impl Builder {
             }
         }
         let camera = camera.ok_or_else(|| node.error("the scene has no <camera>"))?;
-        Ok(Scene::new(instances, Some(camera), self.options.accel))
+        let mut scene = Scene::new(instances, Some(camera), self.options.accel);
+        scene
+            .set_lights(lights, &weights)
+            .map_err(|m| node.error(m))?;
+        Ok(scene)
+    }
+
+    /// A light and its selection weight.
+    fn light(&mut self, node: &Node) -> Result<(Light, f32)> {
+        let weight = node.float_or("weight", 1.0)?;
+        if weight < 0.0 {
+            return Err(node.error("light `weight` must not be negative"));
+        }
+        let colour = |name: &str| -> Result<Option<Vec3>> { node.vec3(name) };
+        let light = match node.type_name.as_deref() {
+            Some("point") => {
+                self.check_children(node, &[])?;
+                let position = colour("position")?
+                    .ok_or_else(|| node.error("point light needs a `position`"))?;
+                let intensity = match (colour("power")?, colour("intensity")?) {
+                    (Some(p), None) => p / (4.0 * crate::math::PI),
+                    (None, Some(i)) => i,
+                    _ => {
+                        return Err(
+                            node.error("point light needs exactly one of `power` and `intensity`")
+                        )
+                    }
+                };
+                Light::Point(PointLight {
+                    position,
+                    intensity,
+                })
+            }
+            Some("directional") => {
+                self.check_children(node, &[])?;
+                let direction = colour("direction")?.ok_or_else(|| {
+                    node.error("directional light needs a `direction` (towards the light)")
+                })?;
+                if direction.length_squared() == 0.0 {
+                    return Err(node.error("directional light `direction` is zero"));
+                }
+                let intensity = colour("intensity")?
+                    .ok_or_else(|| node.error("directional light needs an `intensity`"))?;
+                Light::Directional(DirectionalLight {
+                    direction: direction.normalize(),
+                    intensity,
+                })
+            }
+            Some("spot") => {
+                self.check_children(node, &[])?;
+                let position = colour("position")?
+                    .ok_or_else(|| node.error("spot light needs a `position`"))?;
+                let direction = colour("direction")?
+                    .ok_or_else(|| node.error("spot light needs a `direction`"))?;
+                if direction.length_squared() == 0.0 {
+                    return Err(node.error("spot light `direction` is zero"));
+                }
+                let intensity = match (colour("power")?, colour("intensity")?) {
+                    (None, Some(i)) => i,
+                    (Some(p), None) => p / (4.0 * crate::math::PI),
+                    _ => {
+                        return Err(
+                            node.error("spot light needs exactly one of `power` and `intensity`")
+                        )
+                    }
+                };
+                let cutoff = node.float_or("cutoffAngle", 20.0)?;
+                let beam = node.float_or("beamWidth", cutoff * 0.75)?;
+                if !(0.0..=180.0).contains(&cutoff) || beam < 0.0 || beam > cutoff {
+                    return Err(node
+                        .error("spot light needs 0 <= beamWidth <= cutoffAngle <= 180 (degrees)"));
+                }
+                Light::Spot(SpotLight {
+                    position,
+                    direction: direction.normalize(),
+                    intensity,
+                    cos_falloff_start: beam.to_radians().cos(),
+                    cos_cutoff: cutoff.to_radians().cos(),
+                })
+            }
+            Some("envmap") => {
+                self.check_children(node, &["texture", "transform"])?;
+                let texture = match node.children_tagged("texture").next() {
+                    Some(t) => self.texture(t)?,
+                    None => Arc::new(Texture::Constant(colour("value")?.unwrap_or(Vec3::ONE))),
+                };
+                let transform = self.optional_transform(node)?;
+                Light::Environment(Environment::new(texture, transform))
+            }
+            _ => {
+                return Err(unknown_type(
+                    node,
+                    &["point", "directional", "spot", "envmap"],
+                ))
+            }
+        };
+        node.check_all_used()?;
+        Ok((light, weight))
+    }
+
+    fn texture(&mut self, node: &Rc<Node>) -> Result<Arc<Texture>> {
+        let key = Rc::as_ptr(node);
+        if let Some(t) = self.textures.get(&key) {
+            return Ok(t.clone());
+        }
+        expect_tag(node, "texture")?;
+        self.check_children(node, &[])?;
+        let texture = match node.type_name.as_deref() {
+            Some("constant") => Texture::Constant(node.vec3("value")?.unwrap_or(Vec3::ONE)),
+            Some("checkerboard") => {
+                let scale = match node.floats("scale")? {
+                    None => Vec2::ONE,
+                    Some(v) if v.len() == 1 => Vec2::splat(v[0]),
+                    Some(v) if v.len() == 2 => Vec2::new(v[0], v[1]),
+                    Some(v) => {
+                        return Err(node.error(format!(
+                            "checkerboard `scale` needs 1 or 2 numbers, got {}",
+                            v.len()
+                        )))
+                    }
+                };
+                Texture::Checkerboard(Checkerboard {
+                    scale,
+                    color0: node.vec3("color0")?.unwrap_or(Vec3::ZERO),
+                    color1: node.vec3("color1")?.unwrap_or(Vec3::ONE),
+                })
+            }
+            Some("image") => {
+                let file = node
+                    .string("filename")
+                    .ok_or_else(|| node.error("image texture needs a `filename`"))?;
+                let path = resolve_path(&node.location.file, &file);
+                let linear = node.bool_or("linear", false)?;
+                let image = match self.images.get(&(path.clone(), linear)) {
+                    Some(i) => i.clone(),
+                    None => {
+                        let img = crate::io::image::read_image(&path, Some(!linear))
+                            .map_err(|e| node.error(format!("cannot load texture: {e}")))?;
+                        let img = Arc::new(img);
+                        self.images.insert((path, linear), img.clone());
+                        img
+                    }
+                };
+                let border = match node.string_or("border", "repeat").as_str() {
+                    "repeat" => BorderMode::Repeat,
+                    "clamp" => BorderMode::Clamp,
+                    b => {
+                        return Err(
+                            node.error(format!("unknown border `{b}`; known: repeat, clamp"))
+                        )
+                    }
+                };
+                let filter = match node.string_or("filter", "bilinear").as_str() {
+                    "bilinear" => FilterMode::Bilinear,
+                    "nearest" => FilterMode::Nearest,
+                    f => {
+                        return Err(
+                            node.error(format!("unknown filter `{f}`; known: bilinear, nearest"))
+                        )
+                    }
+                };
+                let exposure = node.float_or("exposure", 1.0)?;
+                Texture::Image(ImageTexture {
+                    image,
+                    border,
+                    filter,
+                    exposure,
+                })
+            }
+            _ => return Err(unknown_type(node, &["constant", "image", "checkerboard"])),
+        };
+        node.check_all_used()?;
+        let texture = Arc::new(texture);
+        self.textures.insert(key, texture.clone());
+        Ok(texture)
+    }
+
+    fn material(&mut self, node: &Rc<Node>) -> Result<Arc<Material>> {
+        let key = Rc::as_ptr(node);
+        if let Some(m) = self.materials.get(&key) {
+            return Ok(m.clone());
+        }
+        expect_tag(node, "bsdf")?;
+        let material = match node.type_name.as_deref() {
+            Some("diffuse") => {
+                self.check_children(node, &["texture"])?;
+                let albedo = self.named_texture(node, "albedo", Vec3::splat(0.5))?;
+                Material::Diffuse(Diffuse { albedo })
+            }
+            _ => return Err(unknown_type(node, &["diffuse"])),
+        };
+        node.check_all_used()?;
+        let material = Arc::new(material);
+        self.materials.insert(key, material.clone());
+        Ok(material)
+    }
+
+    /// A texture slot: a `<texture name=...>` child, a colour property, or the default.
+    fn named_texture(&mut self, node: &Node, name: &str, default: Vec3) -> Result<Arc<Texture>> {
+        if let Some(t) = node
+            .children_tagged("texture")
+            .find(|t| t.name.as_deref() == Some(name))
+        {
+            return self.texture(t);
+        }
+        if let Some(t) = node
+            .children_tagged("texture")
+            .find(|t| t.name.as_deref() != Some(name))
+        {
+            return Err(t.error(format!(
+                "{} has no texture slot `{}`",
+                node.describe(),
+                t.name.as_deref().unwrap_or("")
+            )));
+        }
+        Ok(Arc::new(Texture::Constant(
+            node.vec3(name)?.unwrap_or(default),
+        )))
     }
 
     fn transform(&self, node: &Node) -> Result<Transform> {
@@ -429,17 +664,20 @@ impl Builder {
     fn instance(&mut self, node: &Node) -> Result<Instance> {
         node.check_all_used()?;
         self.check_children(node, &["shape", "transform", "bsdf", "emission"])?;
-        if let Some(c) = node
-            .children
-            .iter()
-            .find(|c| c.tag == "bsdf" || c.tag == "emission")
-        {
+        if let Some(c) = node.children.iter().find(|c| c.tag == "emission") {
             return Err(c.error(format!("<{}> is not supported yet", c.tag)));
         }
         let shape_node = self.single_child(node, "shape")?;
         let shape = self.shape(&shape_node)?;
         let render_from_object = self.optional_transform(node)?;
-        Ok(Instance::new(shape, render_from_object))
+        let mut instance = Instance::new(shape, render_from_object);
+        if node.children_tagged("bsdf").count() > 1 {
+            return Err(node.error("<instance> has more than one <bsdf>"));
+        }
+        if let Some(b) = node.children_tagged("bsdf").next() {
+            instance.material = Some(self.material(b)?);
+        }
+        Ok(instance)
     }
 
     fn shape(&mut self, node: &Rc<Node>) -> Result<Arc<Shape>> {

@@ -8,6 +8,8 @@ pub use builder::SceneBuilder;
 use crate::accel::{Accel, RayStats};
 use crate::camera::Camera;
 use crate::geometry::{Shape, ShapeHit, SurfaceInteraction};
+use crate::light::{Light, LightSampler};
+use crate::material::Material;
 use crate::math::{Bounds3, Ray, Transform};
 use std::sync::Arc;
 
@@ -18,6 +20,8 @@ pub struct Instance {
     pub render_from_object: Transform,
     /// Render-space bounds.
     pub bounds: Bounds3,
+    /// The surface's material; `None` absorbs all light.
+    pub material: Option<Arc<Material>>,
 }
 
 impl Instance {
@@ -27,6 +31,7 @@ impl Instance {
             shape,
             render_from_object,
             bounds,
+            material: None,
         }
     }
 
@@ -83,6 +88,11 @@ pub struct Scene {
     unbounded: Vec<u32>,
     pub camera: Option<Camera>,
     bounds: Bounds3,
+    /// Lights for next-event estimation and the environment.
+    pub lights: Vec<Light>,
+    pub light_sampler: LightSampler,
+    /// Index in `lights` of the environment, if any.
+    pub environment: Option<usize>,
 }
 
 impl Scene {
@@ -104,6 +114,7 @@ impl Scene {
             .collect();
         let tlas = Accel::build(accel, &boxes);
         let bounds = boxes.iter().fold(Bounds3::EMPTY, |a, b| a.union(b));
+        let light_sampler = LightSampler::new(&[], &[], &bounds);
         Scene {
             instances,
             tlas,
@@ -111,6 +122,33 @@ impl Scene {
             unbounded,
             camera,
             bounds,
+            lights: Vec::new(),
+            light_sampler,
+            environment: None,
+        }
+    }
+
+    /// Sets the lights; `weights[i]` scales how often light `i` is picked for next-event
+    /// estimation (0: never). Fails if there is more than one environment.
+    pub fn set_lights(&mut self, lights: Vec<Light>, weights: &[f32]) -> Result<(), String> {
+        let envs: Vec<usize> = (0..lights.len())
+            .filter(|&i| matches!(lights[i], Light::Environment(_)))
+            .collect();
+        if envs.len() > 1 {
+            return Err("a scene can have only one environment light".into());
+        }
+        self.environment = envs.first().copied();
+        self.light_sampler = LightSampler::new(&lights, weights, &self.bounds);
+        self.lights = lights;
+        Ok(())
+    }
+
+    /// Radiance arriving along a ray that leaves the scene in direction `d`.
+    #[inline]
+    pub fn background(&self, d: glam::Vec3) -> glam::Vec3 {
+        match self.environment.map(|i| &self.lights[i]) {
+            Some(Light::Environment(e)) => e.eval(d),
+            _ => glam::Vec3::ZERO,
         }
     }
 

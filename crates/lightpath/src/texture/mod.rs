@@ -1,0 +1,44 @@
+//! Textures: colours that vary over a surface's uv coordinates.
+//!
+//! ```xml
+//! <texture name="albedo" type="constant" value="0.1,0.3,0.7"/>
+//! <texture name="albedo" type="image" filename="wood.png" border="repeat" filter="bilinear" exposure="1"/>
+//! <texture name="albedo" type="checkerboard" scale="16,8" color0="0.1" color1="0.9"/>
+//! ```
+
+mod checkerboard;
+mod image;
+
+pub use checkerboard::Checkerboard;
+pub use image::{BorderMode, FilterMode, ImageTexture};
+
+use glam::{Vec2, Vec3};
+
+/// A texture of any kind.
+#[derive(Debug, Clone)]
+pub enum Texture {
+    Constant(Vec3),
+    Image(ImageTexture),
+    Checkerboard(Checkerboard),
+}
+
+impl Texture {
+    /// The colour at texture coordinates `uv`.
+    #[inline]
+    pub fn eval(&self, uv: Vec2) -> Vec3 {
+        match self {
+            Texture::Constant(c) => *c,
+            Texture::Image(t) => t.eval(uv),
+            Texture::Checkerboard(t) => t.eval(uv),
+        }
+    }
+
+    /// The mean colour over [0, 1]² (for light power estimates).
+    pub fn average(&self) -> Vec3 {
+        match self {
+            Texture::Constant(c) => *c,
+            Texture::Image(t) => t.average(),
+            Texture::Checkerboard(t) => (t.color0 + t.color1) * 0.5,
+        }
+    }
+}
