@@ -82,6 +82,22 @@ impl SpotLight {
     }
 }
 
+/// Light from a point with intensity `intensity` arriving at `p` (inverse-square law).
+fn point_sample(position: Vec3, intensity: Vec3, p: Vec3) -> Option<LightSample> {
+    let d = position - p;
+    let r2 = d.length_squared();
+    if r2 == 0.0 {
+        return None;
+    }
+    let r = r2.sqrt();
+    Some(LightSample {
+        wi: d / r,
+        distance: r,
+        weight: intensity / r2,
+        pdf: 0.0,
+    })
+}
+
 /// A light of any kind.
 #[derive(Debug, Clone)]
 pub enum Light {
@@ -101,38 +117,15 @@ impl Light {
     /// Samples light arriving at `p`.
     pub fn sample(&self, p: Vec3, u: glam::Vec2) -> Option<LightSample> {
         match self {
-            Light::Point(l) => {
-                let d = l.position - p;
-                let r2 = d.length_squared();
-                if r2 == 0.0 {
-                    return None;
-                }
-                let r = r2.sqrt();
-                Some(LightSample {
-                    wi: d / r,
-                    distance: r,
-                    weight: l.intensity / r2,
-                    pdf: 0.0,
-                })
-            }
+            Light::Point(l) => point_sample(l.position, l.intensity, p),
             Light::Spot(l) => {
-                let d = l.position - p;
-                let r2 = d.length_squared();
-                if r2 == 0.0 {
-                    return None;
-                }
-                let r = r2.sqrt();
-                let wi = d / r;
-                let scale = l.falloff(-wi);
+                let mut ls = point_sample(l.position, l.intensity, p)?;
+                let scale = l.falloff(-ls.wi);
                 if scale == 0.0 {
                     return None;
                 }
-                Some(LightSample {
-                    wi,
-                    distance: r,
-                    weight: l.intensity * scale / r2,
-                    pdf: 0.0,
-                })
+                ls.weight *= scale;
+                Some(ls)
             }
             Light::Directional(l) => Some(LightSample {
                 wi: l.direction,
