@@ -85,10 +85,11 @@ impl Renderer<'_> {
         let spp = sampler.samples_per_pixel().max(1);
         let mut pixels = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize);
         let mut stats = RenderStats::default();
-        let mut ray_stats = RayStats::default();
         for y in y0..y1 {
             for x in x0..x1 {
                 let pixel = UVec2::new(x, y);
+                // Per-pixel counters, added into 64-bit totals (a tile's could overflow u32).
+                let mut ray_stats = RayStats::default();
                 let mut sum = Vec3::ZERO;
                 for index in 0..spp {
                     sampler.start_pixel_sample(pixel, index);
@@ -108,11 +109,11 @@ impl Renderer<'_> {
                     }
                 }
                 stats.samples += spp as u64;
+                stats.nodes_visited += ray_stats.nodes_visited as u64;
+                stats.prims_tested += ray_stats.prims_tested as u64;
                 pixels.push(sum / spp as f32);
             }
         }
-        stats.nodes_visited = ray_stats.nodes_visited as u64;
-        stats.prims_tested = ray_stats.prims_tested as u64;
         (pixels, stats)
     }
 }

@@ -268,15 +268,7 @@ impl Builder {
                 self.check_children(node, &[])?;
                 let position = colour("position")?
                     .ok_or_else(|| node.error("point light needs a `position`"))?;
-                let intensity = match (colour("power")?, colour("intensity")?) {
-                    (Some(p), None) => p / (4.0 * crate::math::PI),
-                    (None, Some(i)) => i,
-                    _ => {
-                        return Err(
-                            node.error("point light needs exactly one of `power` and `intensity`")
-                        )
-                    }
-                };
+                let intensity = point_intensity(node)?;
                 Light::Point(PointLight {
                     position,
                     intensity,
@@ -306,15 +298,7 @@ impl Builder {
                 if direction.length_squared() == 0.0 {
                     return Err(node.error("spot light `direction` is zero"));
                 }
-                let intensity = match (colour("power")?, colour("intensity")?) {
-                    (None, Some(i)) => i,
-                    (Some(p), None) => p / (4.0 * crate::math::PI),
-                    _ => {
-                        return Err(
-                            node.error("spot light needs exactly one of `power` and `intensity`")
-                        )
-                    }
-                };
+                let intensity = point_intensity(node)?;
                 let cutoff = node.float_or("cutoffAngle", 20.0)?;
                 let beam = node.float_or("beamWidth", cutoff * 0.75)?;
                 if !(0.0..=180.0).contains(&cutoff) || beam < 0.0 || beam > cutoff {
@@ -729,6 +713,18 @@ impl Builder {
         node.check_all_used()?;
         self.shapes.insert(key, shape.clone());
         Ok(shape)
+    }
+}
+
+/// The radiant intensity of a point-like light, from `intensity` or `power` (÷ 4π).
+fn point_intensity(node: &Node) -> Result<Vec3> {
+    match (node.vec3("power")?, node.vec3("intensity")?) {
+        (Some(p), None) => Ok(p / (4.0 * crate::math::PI)),
+        (None, Some(i)) => Ok(i),
+        _ => Err(node.error(format!(
+            "{} needs exactly one of `power` and `intensity`",
+            node.describe()
+        ))),
     }
 }
 

@@ -137,14 +137,19 @@ impl Node {
 
     /// A 3-vector: three numbers, or one number for all three components.
     pub fn vec3(&self, name: &str) -> Result<Option<Vec3>> {
-        let loc = self.take(name).map(|p| p.location.clone());
-        match self.floats(name)? {
-            None => Ok(None),
+        let Some(p) = self.take(name) else {
+            return Ok(None);
+        };
+        match parse_floats(&p.value) {
             Some(v) if v.len() == 3 => Ok(Some(Vec3::new(v[0], v[1], v[2]))),
             Some(v) if v.len() == 1 => Ok(Some(Vec3::splat(v[0]))),
             Some(v) => Err(Error::scene(
-                loc.unwrap_or_else(|| self.location.clone()),
+                p.location.clone(),
                 format!("`{name}`: expected 1 or 3 numbers, got {}", v.len()),
+            )),
+            None => Err(Error::scene(
+                p.location.clone(),
+                format!("`{name}`: expected numbers, got `{}`", p.value),
             )),
         }
     }

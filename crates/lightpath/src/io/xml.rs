@@ -21,7 +21,7 @@ struct Reader {
     ids: HashMap<String, Rc<Node>>,
     /// Files being read, to reject include cycles.
     stack: Vec<PathBuf>,
-    /// `$name` substitutions.
+    /// `$name` substitutions, longest names first so `$spp2` is not read as `$spp` + "2".
     defines: Vec<(String, String)>,
 }
 
@@ -30,7 +30,7 @@ pub fn read_file(path: &Path, defines: &[(String, String)]) -> Result<Rc<Node>> 
     let mut reader = Reader {
         ids: HashMap::new(),
         stack: Vec::new(),
-        defines: defines.to_vec(),
+        defines: sorted_defines(defines),
     };
     let root = reader.read(path, None)?;
     Ok(root)
@@ -41,7 +41,7 @@ pub fn read_str(text: &str, path: &Path, defines: &[(String, String)]) -> Result
     let mut reader = Reader {
         ids: HashMap::new(),
         stack: Vec::new(),
-        defines: defines.to_vec(),
+        defines: sorted_defines(defines),
     };
     reader.parse(text, path)
 }
@@ -87,10 +87,7 @@ impl Reader {
             return value.to_string();
         }
         let mut out = value.to_string();
-        // Longest names first, so `$spp2` is not replaced as `$spp` + "2".
-        let mut defines = self.defines.clone();
-        defines.sort_by_key(|(k, _)| std::cmp::Reverse(k.len()));
-        for (k, v) in &defines {
+        for (k, v) in &self.defines {
             out = out.replace(&format!("${k}"), v);
         }
         out
@@ -187,6 +184,12 @@ impl Reader {
         }
         Ok(node)
     }
+}
+
+fn sorted_defines(defines: &[(String, String)]) -> Vec<(String, String)> {
+    let mut d = defines.to_vec();
+    d.sort_by_key(|(k, _)| std::cmp::Reverse(k.len()));
+    d
 }
 
 /// A path written in a scene file, relative to that file's folder.

@@ -35,42 +35,38 @@ impl Instance {
         }
     }
 
-    /// Closest hit in object space; the returned `t` is valid for the render-space ray
-    /// because the object-space ray keeps the parameterisation.
+    /// The ray in object space. `t` keeps its meaning because the direction is
+    /// transformed without renormalising.
     #[inline]
-    fn intersect(&self, ray: &Ray, t_max: f32, stats: &mut RayStats) -> Option<ShapeHit> {
+    fn object_ray(&self, ray: &Ray) -> Ray {
         let object_from_render = self.render_from_object.inverse();
-        let r = Ray {
+        Ray {
             origin: object_from_render.point(ray.origin),
             direction: object_from_render.vector(ray.direction),
-            t_min: ray.t_min,
+            ..*ray
+        }
+    }
+
+    /// Closest hit in object space within `[ray.t_min, t_max]`.
+    #[inline]
+    fn intersect(&self, ray: &Ray, t_max: f32, stats: &mut RayStats) -> Option<ShapeHit> {
+        let r = Ray {
             t_max,
+            ..self.object_ray(ray)
         };
         self.shape.intersect(&r, stats)
     }
 
     #[inline]
     fn occluded(&self, ray: &Ray, stats: &mut RayStats) -> bool {
-        let object_from_render = self.render_from_object.inverse();
-        let r = Ray {
-            origin: object_from_render.point(ray.origin),
-            direction: object_from_render.vector(ray.direction),
-            ..*ray
-        };
-        self.shape.occluded(&r, stats)
+        self.shape.occluded(&self.object_ray(ray), stats)
     }
 
     /// The render-space interaction of a hit found by `intersect`.
     fn interaction(&self, ray: &Ray, hit: &ShapeHit) -> SurfaceInteraction {
-        let object_from_render = self.render_from_object.inverse();
-        let r = Ray {
-            origin: object_from_render.point(ray.origin),
-            direction: object_from_render.vector(ray.direction),
-            ..*ray
-        };
         let mut si = self
             .shape
-            .interaction(&r, hit)
+            .interaction(&self.object_ray(ray), hit)
             .transformed(&self.render_from_object);
         si.wo = -ray.direction.normalize();
         si
