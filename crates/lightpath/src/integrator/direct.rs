@@ -76,7 +76,7 @@ impl Direct {
         }
 
         // BSDF sampling: finds the environment (area lights come with emission).
-        if let Some(bs) = material.sample(&si, wo, sampler.next_2d()) {
+        if let Some(bs) = material.sample(&si, wo, sampler.next_1d(), sampler.next_2d()) {
             let next = si.spawn_ray(bs.wi);
             if scene.intersect_with_stats(&next, stats).is_none() {
                 if let Some(env_index) = scene.environment {
@@ -84,7 +84,7 @@ impl Direct {
                         unreachable!()
                     };
                     let pick = scene.light_sampler.probability(env_index);
-                    let mis = if pick > 0.0 {
+                    let mis = if pick > 0.0 && !bs.delta {
                         power_heuristic(bs.pdf, pick * env.pdf(bs.wi))
                     } else {
                         1.0

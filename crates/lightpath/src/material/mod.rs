@@ -23,8 +23,12 @@ pub struct BsdfSample {
     pub wi: Vec3,
     /// f·|cos θi| / pdf.
     pub weight: Vec3,
-    /// Solid-angle density of `wi`.
+    /// Solid-angle density of `wi` (for a delta lobe, the discrete probability of
+    /// choosing it).
     pub pdf: f32,
+    /// True when `wi` comes from a delta (specular) lobe: `eval`/`pdf` cannot find it
+    /// and MIS must not weight it.
+    pub delta: bool,
 }
 
 /// A material of any kind.
@@ -58,8 +62,15 @@ impl Material {
         }
     }
 
-    /// Samples an incident direction.
-    pub fn sample(&self, si: &SurfaceInteraction, wo: Vec3, u: Vec2) -> Option<BsdfSample> {
+    /// Samples an incident direction: `u_lobe` picks a lobe, `u` the direction in it.
+    pub fn sample(
+        &self,
+        si: &SurfaceInteraction,
+        wo: Vec3,
+        u_lobe: f32,
+        u: Vec2,
+    ) -> Option<BsdfSample> {
+        let _ = u_lobe;
         let frame = shading_frame(si);
         let wo_local = frame.to_local(wo);
         let (wi, weight, pdf) = match self {
@@ -69,6 +80,15 @@ impl Material {
             wi: frame.to_world(wi),
             weight,
             pdf,
+            delta: false,
         })
+    }
+
+    /// True when every lobe is a delta (a mirror or smooth glass): next-event estimation
+    /// is useless there.
+    pub fn is_delta(&self) -> bool {
+        match self {
+            Material::Diffuse(_) => false,
+        }
     }
 }
