@@ -23,6 +23,8 @@ pub struct TriangleMesh {
     /// Interpolate vertex normals (when the mesh has them).
     pub smooth: bool,
     pub accel: Accel,
+    /// Triangle areas for area sampling, built the first time the mesh emits light.
+    area_distribution: std::sync::OnceLock<crate::sampling::Distribution1D>,
 }
 
 /// Per-ray constants of the watertight test: the axis permutation and shear that make
@@ -174,7 +176,51 @@ impl TriangleMesh {
             indices: data.indices,
             smooth,
             accel,
+            area_distribution: std::sync::OnceLock::new(),
         })
+    }
+
+    /// Object-space area of triangle `prim`.
+    #[inline]
+    pub fn triangle_area(&self, prim: u32) -> f32 {
+        let (p0, p1, p2) = self.vertices(prim);
+        0.5 * (p1 - p0).cross(p2 - p0).length()
+    }
+
+    /// Total object-space area.
+    pub fn area(&self) -> f32 {
+        let d = self.area_distribution();
+        d.integral() * d.len() as f32
+    }
+
+    /// Triangles chosen in proportion to their area.
+    pub fn area_distribution(&self) -> &crate::sampling::Distribution1D {
+        self.area_distribution.get_or_init(|| {
+            let areas: Vec<f32> = (0..self.indices.len() as u32)
+                .map(|i| self.triangle_area(i))
+                .collect();
+            crate::sampling::Distribution1D::new(&areas)
+        })
+    }
+
+    /// A point uniformly distributed over the surface (object space): the hit record of
+    /// that point, and the area density 1 / total area.
+    pub fn sample_area(&self, u_prim: f32, u: Vec2) -> Option<(ShapeHit, f32)> {
+        let d = self.area_distribution();
+        let area = self.area();
+        if d.is_empty() || !(area > 0.0) {
+            return None;
+        }
+        let (_, _, prim) = d.sample_continuous(u_prim);
+        let b = crate::sampling::warp::square_to_uniform_triangle(u);
+        Some((
+            ShapeHit {
+                t: 1.0,
+                prim: prim as u32,
+                uv: b,
+            },
+            1.0 / area,
+        ))
     }
 
     pub fn triangle_count(&self) -> usize {

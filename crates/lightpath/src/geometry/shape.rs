@@ -2,8 +2,10 @@
 
 use super::{Cuboid, Cylinder, Disk, Plane, Rectangle, Sphere, SurfaceInteraction, TriangleMesh};
 use crate::accel::RayStats;
+use crate::math::PI;
 use crate::math::{Bounds3, Ray};
-use glam::Vec2;
+use crate::sampling::warp;
+use glam::{Vec2, Vec3};
 use std::sync::Arc;
 
 /// What a shape's intersection test returns: enough to rebuild the full interaction for
@@ -78,6 +80,137 @@ impl Shape {
             Shape::Cylinder(s) => s.interaction(ray, hit),
             Shape::TriangleMesh(s) => s.interaction(ray, hit),
         }
+    }
+
+    /// Object-space surface area (infinite for the plane).
+    pub fn area(&self) -> f32 {
+        match self {
+            Shape::Sphere(_) => 4.0 * PI,
+            Shape::Plane(_) => f32::INFINITY,
+            Shape::Rectangle(s) => s.area(),
+            Shape::Disk(s) => s.area(),
+            Shape::Cuboid(_) => 24.0,
+            Shape::Cylinder(c) => {
+                if c.caps {
+                    4.0 * PI
+                } else {
+                    2.0 * PI
+                }
+            }
+            Shape::TriangleMesh(m) => m.area(),
+        }
+    }
+
+    /// A point on the surface, uniform in object-space area: its interaction (object
+    /// space, `wo` along the normal) and the area density. `None` for the plane and for
+    /// shapes without area.
+    pub fn sample_area(&self, u_prim: f32, u: Vec2) -> Option<(SurfaceInteraction, f32)> {
+        let area = self.area();
+        if !(area.is_finite() && area > 0.0) {
+            return None;
+        }
+        let (p, n, hit) = match self {
+            Shape::Sphere(_) => {
+                let p = warp::square_to_uniform_sphere(u);
+                (
+                    p,
+                    p,
+                    ShapeHit {
+                        t: 1.0,
+                        prim: 0,
+                        uv: Vec2::ZERO,
+                    },
+                )
+            }
+            Shape::Plane(_) => return None,
+            Shape::Rectangle(_) => {
+                let xy = u * 2.0 - Vec2::ONE;
+                (
+                    xy.extend(0.0),
+                    Vec3::Z,
+                    ShapeHit {
+                        t: 1.0,
+                        prim: 0,
+                        uv: xy,
+                    },
+                )
+            }
+            Shape::Disk(_) => {
+                let xy = warp::square_to_uniform_disk_concentric(u);
+                (
+                    xy.extend(0.0),
+                    Vec3::Z,
+                    ShapeHit {
+                        t: 1.0,
+                        prim: 0,
+                        uv: xy,
+                    },
+                )
+            }
+            Shape::Cuboid(_) => {
+                let face = ((u_prim * 6.0) as u32).min(5);
+                let axis = (face / 2) as usize;
+                let sign = if face % 2 == 1 { 1.0 } else { -1.0 };
+                let (a1, a2) = ((axis + 1) % 3, (axis + 2) % 3);
+                let mut p = Vec3::ZERO;
+                p[axis] = sign;
+                p[a1] = u.x * 2.0 - 1.0;
+                p[a2] = u.y * 2.0 - 1.0;
+                let mut n = Vec3::ZERO;
+                n[axis] = sign;
+                (
+                    p,
+                    n,
+                    ShapeHit {
+                        t: 1.0,
+                        prim: face,
+                        uv: Vec2::ZERO,
+                    },
+                )
+            }
+            Shape::Cylinder(c) => {
+                // Side 2π, each cap π.
+                let side = if c.caps { 0.5 } else { 1.0 };
+                if u_prim < side {
+                    let phi = 2.0 * PI * u.x;
+                    let n = Vec3::new(phi.cos(), phi.sin(), 0.0);
+                    (
+                        n + Vec3::Z * u.y,
+                        n,
+                        ShapeHit {
+                            t: 1.0,
+                            prim: 0,
+                            uv: Vec2::ZERO,
+                        },
+                    )
+                } else {
+                    let top = u_prim >= 0.75;
+                    let xy = warp::square_to_uniform_disk_concentric(u);
+                    let z = if top { 1.0 } else { 0.0 };
+                    let n = if top { Vec3::Z } else { -Vec3::Z };
+                    let prim = if top { 2 } else { 1 };
+                    (
+                        xy.extend(z),
+                        n,
+                        ShapeHit {
+                            t: 1.0,
+                            prim,
+                            uv: Vec2::ZERO,
+                        },
+                    )
+                }
+            }
+            Shape::TriangleMesh(m) => {
+                let (hit, pdf) = m.sample_area(u_prim, u)?;
+                let ray = Ray::new(Vec3::ZERO, Vec3::Z);
+                let si = m.interaction(&ray, &hit);
+                return Some((SurfaceInteraction { wo: si.n, ..si }, pdf));
+            }
+        };
+        // The analytic shapes rebuild their interaction from a ray that reaches `p` at t = 1.
+        let ray = Ray::new(p + n, -n);
+        let si = self.interaction(&ray, &hit);
+        Some((SurfaceInteraction { wo: n, ..si }, 1.0 / area))
     }
 
     /// A short name for logs and statistics.

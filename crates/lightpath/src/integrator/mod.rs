@@ -4,11 +4,13 @@ mod ambient_occlusion;
 mod aov;
 mod camera_direction;
 mod direct;
+mod path_tracer;
 
 pub use ambient_occlusion::AmbientOcclusion;
 pub use aov::{Aov, AovVariable};
 pub use camera_direction::CameraDirection;
 pub use direct::{power_heuristic, Direct};
+pub use path_tracer::PathTracer;
 
 use crate::accel::RayStats;
 use crate::math::Ray;
@@ -23,6 +25,7 @@ pub enum Integrator {
     AmbientOcclusion(AmbientOcclusion),
     CameraDirection(CameraDirection),
     Direct(Direct),
+    PathTracer(PathTracer),
 }
 
 impl Integrator {
@@ -40,6 +43,7 @@ impl Integrator {
             Integrator::AmbientOcclusion(i) => i.li(scene, ray, sampler, stats),
             Integrator::CameraDirection(i) => i.li(ray, sampler),
             Integrator::Direct(i) => i.li(scene, ray, sampler, stats),
+            Integrator::PathTracer(i) => i.li(scene, ray, sampler, stats),
         }
     }
 

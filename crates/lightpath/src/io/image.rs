@@ -9,9 +9,9 @@
 //! | `.png`            | 8/16-bit, sRGB-decoded by default     | 8-bit RGB, sRGB-encoded    |
 //! | `.jpg`, `.jpeg`   | 8-bit, sRGB-decoded by default        | –                          |
 //!
-//! Integer (8/16-bit) data is decoded from sRGB with the exact sRGB transfer
-//! function unless the caller says the data is linear (`srgb: Some(false)`), in
-//! which case values are just scaled to [0, 1]. Floating-point data (EXR, HDR) is
+//! Integer (8/16-bit) data is decoded with the exact sRGB transfer function, or the
+//! transfer the caller names (a power law, or linear: values just scaled to [0, 1]).
+//! Floating-point data (EXR, HDR) is
 //! always taken as linear. Grey images become RGB; alpha is dropped. Row 0 of the
 //! result is the top row of the image (EXR: the first row of the data window, y
 //! increasing downward).
@@ -76,16 +76,38 @@ fn extension_text(path: &Path) -> String {
     }
 }
 
+/// How 8/16-bit image data encodes linear values.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Transfer {
+    /// The exact sRGB curve (the default).
+    Srgb,
+    /// A pure power law, `linear = encoded^γ` (the lightwave course decodes 8-bit
+    /// textures with γ = 2.2).
+    Gamma(f32),
+    /// Linear data: value / max.
+    Linear,
+}
+
+impl Transfer {
+    #[inline]
+    pub fn decode(self, v: f32) -> f32 {
+        match self {
+            Transfer::Srgb => srgb_to_linear(v),
+            Transfer::Gamma(g) => v.powf(g),
+            Transfer::Linear => v,
+        }
+    }
+}
+
 /// Reads an image file into linear RGB.
 ///
-/// `srgb` says how 8/16-bit data is encoded: `None` or `Some(true)` decodes it
-/// from sRGB, `Some(false)` takes it as linear (value / max). Float data (EXR,
+/// `transfer` says how 8/16-bit data is encoded (`None`: sRGB). Float data (EXR,
 /// HDR) is always linear.
-pub fn read_image(path: &Path, srgb: Option<bool>) -> Result<Image> {
+pub fn read_image(path: &Path, transfer: Option<Transfer>) -> Result<Image> {
     match kind_of(path) {
         Some(Kind::Exr) => read_exr(path),
         Some(Kind::Hdr | Kind::Png | Kind::Jpeg) => {
-            read_with_image_crate(path, srgb.unwrap_or(true))
+            read_with_image_crate(path, transfer.unwrap_or(Transfer::Srgb))
         }
         None => Err(Error::image(
             path,
@@ -197,7 +219,7 @@ fn image_crate_error(path: &Path, error: image::ImageError) -> Error {
     }
 }
 
-fn read_with_image_crate(path: &Path, srgb: bool) -> Result<Image> {
+fn read_with_image_crate(path: &Path, transfer: Transfer) -> Result<Image> {
     let file = File::open(path).map_err(|e| Error::io(path, e))?;
     let mut reader = image::ImageReader::new(BufReader::new(file));
     // The extension picks the format; the content overrides it when recognised.
@@ -221,28 +243,14 @@ fn read_with_image_crate(path: &Path, srgb: bool) -> Result<Image> {
             .map(|p| Vec3::from_array(p.0))
             .collect()
     } else if is_8bit {
-        let table: [f32; 256] = std::array::from_fn(|i| {
-            let v = i as f32 / 255.0;
-            if srgb {
-                srgb_to_linear(v)
-            } else {
-                v
-            }
-        });
+        let table: [f32; 256] = std::array::from_fn(|i| transfer.decode(i as f32 / 255.0));
         decoded
             .to_rgb8()
             .pixels()
             .map(|p| Vec3::from_array(p.0.map(|c| table[c as usize])))
             .collect()
     } else {
-        let decode = |v: u16| {
-            let v = f32::from(v) / 65535.0;
-            if srgb {
-                srgb_to_linear(v)
-            } else {
-                v
-            }
-        };
+        let decode = |v: u16| transfer.decode(f32::from(v) / 65535.0);
         decoded
             .to_rgb16()
             .pixels()
@@ -557,7 +565,7 @@ mod tests {
             }
         }
         // As linear data: the raw codes / 255.
-        let raw = read_image(&path, Some(false)).expect("read");
+        let raw = read_image(&path, Some(Transfer::Linear)).expect("read");
         for (a, b) in back.pixels.iter().zip(&raw.pixels) {
             for (a, b) in a.to_array().into_iter().zip(b.to_array()) {
                 assert!((a - srgb_to_linear(b)).abs() < 1e-6);
@@ -575,7 +583,7 @@ mod tests {
             image::LumaA([(x * 100 + y * 50) as u8, 10])
         });
         grey.save(&path).expect("save");
-        let image = read_image(&path, Some(false)).expect("read");
+        let image = read_image(&path, Some(Transfer::Linear)).expect("read");
         assert_eq!(image.get(1, 1), Vec3::splat(150.0 / 255.0));
         assert_eq!(image.get(0, 1), Vec3::splat(50.0 / 255.0));
 
@@ -590,7 +598,7 @@ mod tests {
         assert!((p.y - srgb_to_linear(32768.0 / 65535.0)).abs() < 1e-6);
         assert!((p.z - srgb_to_linear(1000.0 / 65535.0)).abs() < 1e-7);
         assert_eq!(image.get(0, 0).z, 1.0);
-        let linear = read_image(&path, Some(false)).expect("read");
+        let linear = read_image(&path, Some(Transfer::Linear)).expect("read");
         assert_eq!(linear.get(1, 0).y, 32768.0 / 65535.0);
     }
 

@@ -15,9 +15,11 @@
 //! picks it; a light with weight 0 is never sampled directly (an environment with weight
 //! 0 is still seen by rays that escape).
 
+mod area;
 mod environment;
 mod sampler;
 
+pub use area::{AreaLight, Emission};
 pub use environment::Environment;
 pub use sampler::LightSampler;
 
@@ -105,6 +107,7 @@ pub enum Light {
     Directional(DirectionalLight),
     Spot(SpotLight),
     Environment(Environment),
+    Area(AreaLight),
 }
 
 /// Luminance of linear sRGB.
@@ -114,8 +117,9 @@ pub fn luminance(c: Vec3) -> f32 {
 }
 
 impl Light {
-    /// Samples light arriving at `p`.
-    pub fn sample(&self, p: Vec3, u: glam::Vec2) -> Option<LightSample> {
+    /// Samples light arriving at `p`; `u_prim` picks a part (a triangle of a mesh),
+    /// `u` the point on it.
+    pub fn sample(&self, p: Vec3, u_prim: f32, u: glam::Vec2) -> Option<LightSample> {
         match self {
             Light::Point(l) => point_sample(l.position, l.intensity, p),
             Light::Spot(l) => {
@@ -134,6 +138,7 @@ impl Light {
                 pdf: 0.0,
             }),
             Light::Environment(e) => e.sample(u),
+            Light::Area(a) => a.sample(p, u_prim, u),
         }
     }
 
@@ -154,11 +159,12 @@ impl Light {
             }
             Light::Directional(l) => PI * radius * radius * luminance(l.intensity),
             Light::Environment(e) => 4.0 * PI * PI * radius * radius * luminance(e.average()),
+            Light::Area(a) => a.power(),
         }
     }
 
     /// True for lights at a single point or direction (MIS cannot weight them).
     pub fn is_delta(&self) -> bool {
-        !matches!(self, Light::Environment(_))
+        !matches!(self, Light::Environment(_) | Light::Area(_))
     }
 }

@@ -8,7 +8,7 @@ pub use builder::SceneBuilder;
 use crate::accel::{Accel, RayStats};
 use crate::camera::Camera;
 use crate::geometry::{Shape, ShapeHit, SurfaceInteraction};
-use crate::light::{Light, LightSampler};
+use crate::light::{AreaLight, Emission, Light, LightSampler};
 use crate::material::Material;
 use crate::math::{Bounds3, Ray, Transform};
 use std::sync::Arc;
@@ -22,6 +22,10 @@ pub struct Instance {
     pub bounds: Bounds3,
     /// The surface's material; `None` absorbs all light.
     pub material: Option<Arc<Material>>,
+    /// Light the surface emits (an area light).
+    pub emission: Option<Emission>,
+    /// Index in `Scene::lights` of the area light made from this instance.
+    pub light: Option<u32>,
 }
 
 impl Instance {
@@ -32,6 +36,8 @@ impl Instance {
             render_from_object,
             bounds,
             material: None,
+            emission: None,
+            light: None,
         }
     }
 
@@ -125,8 +131,31 @@ impl Scene {
     }
 
     /// Sets the lights; `weights[i]` scales how often light `i` is picked for next-event
-    /// estimation (0: never). Fails if there is more than one environment.
-    pub fn set_lights(&mut self, lights: Vec<Light>, weights: &[f32]) -> Result<(), String> {
+    /// estimation (0: never). Every instance with an emission becomes an area light of
+    /// weight 1 after them. Fails if there is more than one environment.
+    pub fn set_lights(&mut self, mut lights: Vec<Light>, weights: &[f32]) -> Result<(), String> {
+        let mut weights = weights.to_vec();
+        lights.retain(|l| !matches!(l, Light::Area(_)));
+        weights.truncate(lights.len());
+        for inst in &mut self.instances {
+            inst.light = None;
+            if let Some(e) = &inst.emission {
+                if !inst.shape.area().is_finite() {
+                    return Err(format!(
+                        "a {} cannot emit light: it has no finite area",
+                        inst.shape.kind_name()
+                    ));
+                }
+                inst.light = Some(lights.len() as u32);
+                lights.push(Light::Area(AreaLight::new(
+                    inst.shape.clone(),
+                    inst.render_from_object,
+                    e.clone(),
+                )));
+                weights.push(1.0);
+            }
+        }
+        let weights = &weights[..];
         let envs: Vec<usize> = (0..lights.len())
             .filter(|&i| matches!(lights[i], Light::Environment(_)))
             .collect();
@@ -145,6 +174,31 @@ impl Scene {
         match self.environment.map(|i| &self.lights[i]) {
             Some(Light::Environment(e)) => e.eval(d),
             _ => glam::Vec3::ZERO,
+        }
+    }
+
+    /// Radiance emitted by the surface at `si` towards `w` (unit, leaving the surface).
+    #[inline]
+    pub fn emitted(&self, si: &SurfaceInteraction, w: glam::Vec3) -> glam::Vec3 {
+        match &self.instances[si.instance as usize].emission {
+            Some(e) => e.eval(si, w),
+            None => glam::Vec3::ZERO,
+        }
+    }
+
+    /// Solid-angle density with which next-event estimation from `p` (light selection
+    /// included) picks the emitter hit at `si` by a ray in direction `wi`.
+    pub fn emitter_pdf(&self, p: glam::Vec3, si: &SurfaceInteraction, wi: glam::Vec3) -> f32 {
+        let Some(index) = self.instances[si.instance as usize].light else {
+            return 0.0;
+        };
+        let pick = self.light_sampler.probability(index as usize);
+        if pick == 0.0 {
+            return 0.0;
+        }
+        match &self.lights[index as usize] {
+            Light::Area(a) => pick * a.pdf(p, si, wi),
+            _ => 0.0,
         }
     }
 

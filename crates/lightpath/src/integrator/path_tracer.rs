@@ -1,0 +1,173 @@
+//! Unidirectional path tracing: at every vertex one light is sampled with a shadow ray
+//! (next-event estimation) and the BSDF is sampled to continue the path; emitters and the
+//! environment found by either strategy are combined by multiple importance sampling
+//! (power heuristic), so no light is counted twice. Paths end at `depth` vertices (the
+//! course's meaning: depth 1 sees only emitters and the environment, depth 2 is direct
+//! lighting), or earlier by Russian roulette, which keeps the estimate unbiased.
+//!
+//! ```xml
+//! <integrator type="pathtracer" depth="8">
+//!     <scene>...</scene>
+//!     <sampler type="independent" count="64"/>
+//! </integrator>
+//! ```
+//!
+//! `depth="-1"` removes the limit (Russian roulette alone ends paths).
+
+use super::power_heuristic;
+use crate::accel::RayStats;
+use crate::light::Light;
+use crate::math::Ray;
+use crate::sampling::Sampler;
+use crate::scene::Scene;
+use glam::Vec3;
+
+#[derive(Debug, Clone)]
+pub struct PathTracer {
+    /// Maximum number of path vertices (surface hits); `u32::MAX` for no limit.
+    pub max_depth: u32,
+    /// Russian roulette starts after this many vertices (`u32::MAX`: never).
+    pub rr_depth: u32,
+    /// Each sample's contribution is clamped to this luminance-free maximum per channel
+    /// (biased; off by default).
+    pub clamp: Option<f32>,
+}
+
+impl Default for PathTracer {
+    fn default() -> Self {
+        PathTracer {
+            max_depth: 2,
+            rr_depth: 4,
+            clamp: None,
+        }
+    }
+}
+
+/// What the previous vertex knows about how the path continued from it.
+struct Previous {
+    p: Vec3,
+    bsdf_pdf: f32,
+    delta: bool,
+}
+
+impl PathTracer {
+    pub fn li(
+        &self,
+        scene: &Scene,
+        camera_ray: &Ray,
+        sampler: &mut Sampler,
+        stats: &mut RayStats,
+    ) -> Vec3 {
+        let mut l = Vec3::ZERO;
+        let mut beta = Vec3::ONE;
+        let mut ray = *camera_ray;
+        let mut prev: Option<Previous> = None;
+        let mut depth = 1u32;
+        loop {
+            let dir = ray.direction.normalize();
+            let Some(si) = scene.intersect_with_stats(&ray, stats) else {
+                let le = scene.background(dir);
+                if le != Vec3::ZERO {
+                    l += beta * le * self.environment_mis(scene, prev.as_ref(), dir);
+                }
+                break;
+            };
+            let inst = &scene.instances[si.instance as usize];
+            if inst.emission.is_some() {
+                let le = scene.emitted(&si, si.wo);
+                if le != Vec3::ZERO {
+                    let mis = match &prev {
+                        Some(pv) if !pv.delta => {
+                            power_heuristic(pv.bsdf_pdf, scene.emitter_pdf(pv.p, &si, dir))
+                        }
+                        _ => 1.0,
+                    };
+                    l += beta * le * mis;
+                }
+            }
+            if depth >= self.max_depth {
+                break;
+            }
+            let Some(material) = inst.material.as_deref() else {
+                break;
+            };
+            let wo = si.wo;
+
+            // Next-event estimation: one light, one shadow ray.
+            let u_light = sampler.next_1d();
+            let u_prim = sampler.next_1d();
+            let u_point = sampler.next_2d();
+            if !material.is_delta() {
+                if let Some((index, pick)) = scene.light_sampler.sample(u_light) {
+                    let light = &scene.lights[index];
+                    if let Some(ls) = light.sample(si.p, u_prim, u_point) {
+                        let f = material.eval(&si, wo, ls.wi);
+                        if f != Vec3::ZERO && ls.weight != Vec3::ZERO {
+                            let shadow = if ls.distance.is_finite() {
+                                si.spawn_ray_to(si.p + ls.wi * ls.distance)
+                            } else {
+                                si.spawn_ray(ls.wi)
+                            };
+                            if !scene.occluded(&shadow) {
+                                let mis = if light.is_delta() {
+                                    1.0
+                                } else {
+                                    power_heuristic(pick * ls.pdf, material.pdf(&si, wo, ls.wi))
+                                };
+                                l += beta * f * ls.weight * (mis / pick);
+                            }
+                        }
+                    }
+                }
+            }
+
+            // Continue the path by sampling the BSDF.
+            let u_lobe = sampler.next_1d();
+            let u_dir = sampler.next_2d();
+            let Some(bs) = material.sample(&si, wo, u_lobe, u_dir) else {
+                break;
+            };
+            beta *= bs.weight;
+            if beta == Vec3::ZERO || !beta.is_finite() {
+                break;
+            }
+            prev = Some(Previous {
+                p: si.p,
+                bsdf_pdf: bs.pdf,
+                delta: bs.delta,
+            });
+            ray = si.spawn_ray(bs.wi);
+            depth += 1;
+            if depth > self.rr_depth {
+                let q = beta.max_element().min(0.95);
+                if sampler.next_1d() >= q {
+                    break;
+                }
+                beta /= q;
+            }
+        }
+        match self.clamp {
+            Some(c) => l.min(Vec3::splat(c)),
+            None => l,
+        }
+    }
+
+    /// The MIS weight of the environment found by a ray leaving `prev` in direction `d`.
+    fn environment_mis(&self, scene: &Scene, prev: Option<&Previous>, d: Vec3) -> f32 {
+        let Some(pv) = prev else { return 1.0 };
+        if pv.delta {
+            return 1.0;
+        }
+        let Some(env_index) = scene.environment else {
+            return 1.0;
+        };
+        let pick = scene.light_sampler.probability(env_index);
+        if pick == 0.0 {
+            return 1.0;
+        }
+        let Light::Environment(env) = &scene.lights[env_index] else {
+            return 1.0;
+        };
+        power_heuristic(pv.bsdf_pdf, pick * env.pdf(d))
+    }
+}
