@@ -62,9 +62,10 @@ pub struct RenderOptions {
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Acceleration structure: list, bvh2 (default).
-    #[arg(long, default_value = "bvh2")]
-    pub accel: String,
+    /// Acceleration structure: list, bvh2, bvh-course (default: the scene dialect's;
+    /// lightwave scenes use bvh-course, the course's BVH).
+    #[arg(long)]
+    pub accel: Option<String>,
     /// Seed of the random sequences.
     #[arg(long)]
     pub seed: Option<u64>,
@@ -78,13 +79,15 @@ pub struct RenderOptions {
 
 impl RenderOptions {
     pub fn load_options(&self) -> Result<lightpath::io::LoadOptions> {
-        let accel = lightpath::accel::AccelKind::from_name(&self.accel).ok_or_else(|| {
-            anyhow::anyhow!(
-                "unknown --accel `{}`; known: {}",
-                self.accel,
-                lightpath::accel::AccelKind::NAMES.join(", ")
-            )
-        })?;
+        let accel = match &self.accel {
+            None => None,
+            Some(name) => Some(lightpath::accel::AccelKind::from_name(name).ok_or_else(|| {
+                anyhow::anyhow!(
+                    "unknown --accel `{name}`; known: {}",
+                    lightpath::accel::AccelKind::NAMES.join(", ")
+                )
+            })?),
+        };
         let mut defines = Vec::new();
         for d in &self.defines {
             let (k, v) = d

@@ -67,6 +67,9 @@ pub struct BuildSettings {
     pub max_leaf_size: usize,
     /// Cost of a node traversal relative to a primitive test.
     pub traversal_cost: f32,
+    /// Make a leaf where splitting costs more than testing every primitive (SAH
+    /// termination); without it, nodes split down to `max_leaf_size`.
+    pub cost_termination: bool,
 }
 
 impl Default for BuildSettings {
@@ -81,12 +84,22 @@ impl BuildSettings {
         bins: 8,
         max_leaf_size: 8,
         traversal_cost: 1.0,
+        cost_termination: true,
     };
     /// The default.
     pub const QUALITY: BuildSettings = BuildSettings {
         bins: 32,
         max_leaf_size: 8,
         traversal_cost: 1.0,
+        cost_termination: true,
+    };
+    /// The lightwave course's textbook build: 16 bins, no cost termination, leaves of at
+    /// most two primitives. Its trees reproduce the course's traversal statistics.
+    pub const COURSE: BuildSettings = BuildSettings {
+        bins: 16,
+        max_leaf_size: 2,
+        traversal_cost: 0.0,
+        cost_termination: false,
     };
 }
 
@@ -161,7 +174,7 @@ impl Builder<'_> {
             cbounds.expand(self.centroids[i as usize]);
         }
         let n = indices.len();
-        if n == 1 {
+        if n == 1 || (!self.settings.cost_termination && n <= self.settings.max_leaf_size) {
             return BuildNode::Leaf {
                 bounds,
                 first: offset,
@@ -176,7 +189,11 @@ impl Builder<'_> {
             None
         };
         let mid = match split {
-            Some((axis, pos, cost)) if cost < leaf_cost || n > self.settings.max_leaf_size => {
+            Some((axis, pos, cost))
+                if cost < leaf_cost
+                    || n > self.settings.max_leaf_size
+                    || !self.settings.cost_termination =>
+            {
                 // Partition by the chosen bin boundary.
                 let mut mid = partition(indices, |i| self.centroids[i as usize][axis] < pos);
                 if mid == 0 || mid == n {
@@ -393,12 +410,13 @@ impl Bvh {
         }
         let mut stack: [(u32, f32); STACK_SIZE] = [(0, 0.0); STACK_SIZE];
         let mut sp = 0usize;
-        stats.nodes_visited += 1;
         let mut current = match self.nodes[0].hit(origin, inv_dir, ray.t_min, t_max) {
             Some(_) => 0u32,
             None => return false,
         };
         loop {
+            // A node counts as visited when it is entered.
+            stats.nodes_visited += 1;
             let node = &self.nodes[current as usize];
             if node.is_leaf() {
                 let first = node.left_or_first as usize;
@@ -408,12 +426,11 @@ impl Bvh {
                 }
             } else {
                 let l = node.left_or_first;
-                stats.nodes_visited += 2;
                 let hl = self.nodes[l as usize].hit(origin, inv_dir, ray.t_min, t_max);
                 let hr = self.nodes[l as usize + 1].hit(origin, inv_dir, ray.t_min, t_max);
                 match (hl, hr) {
                     (Some(dl), Some(dr)) => {
-                        let (near, far, dfar) = if dl <= dr {
+                        let (near, far, dfar) = if dl < dr {
                             (l, l + 1, dr)
                         } else {
                             (l + 1, l, dl)
@@ -463,7 +480,6 @@ impl Bvh {
         }
         let mut stack = [0u32; STACK_SIZE];
         let mut sp = 0usize;
-        stats.nodes_visited += 1;
         if self.nodes[0]
             .hit(ray.origin, inv_dir, ray.t_min, ray.t_max)
             .is_none()
@@ -472,6 +488,8 @@ impl Bvh {
         }
         let mut current = 0u32;
         loop {
+            // A node counts as visited when it is entered.
+            stats.nodes_visited += 1;
             let node = &self.nodes[current as usize];
             if node.is_leaf() {
                 let first = node.left_or_first as usize;
@@ -483,7 +501,6 @@ impl Bvh {
                 }
             } else {
                 let l = node.left_or_first;
-                stats.nodes_visited += 2;
                 let hl = self.nodes[l as usize]
                     .hit(ray.origin, inv_dir, ray.t_min, ray.t_max)
                     .is_some();

@@ -17,7 +17,7 @@ use crate::math::{Bounds3, Ray};
 /// Per-ray traversal counters, drawn by the `bvh` AOV.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct RayStats {
-    /// Nodes whose box was tested.
+    /// Nodes entered (their box was hit within the ray's current range).
     pub nodes_visited: u32,
     /// Primitives handed to the intersection closure.
     pub prims_tested: u32,
@@ -31,15 +31,19 @@ pub enum AccelKind {
     /// Binary BVH with a binned SAH build.
     #[default]
     Bvh2,
+    /// The lightwave course's binary BVH (16 bins, leaves of at most two primitives, no
+    /// SAH termination): the tree whose statistics the course's `bvh` views show.
+    BvhCourse,
 }
 
 impl AccelKind {
-    pub const NAMES: &'static [&'static str] = &["list", "bvh2", "bvh"];
+    pub const NAMES: &'static [&'static str] = &["list", "bvh2", "bvh", "bvh-course"];
 
     pub fn from_name(name: &str) -> Option<AccelKind> {
         match name {
             "list" => Some(AccelKind::List),
             "bvh" | "bvh2" => Some(AccelKind::Bvh2),
+            "bvh-course" => Some(AccelKind::BvhCourse),
             _ => None,
         }
     }
@@ -58,6 +62,7 @@ impl Accel {
         match kind {
             AccelKind::List => Accel::List(ListAccel::new(bounds)),
             AccelKind::Bvh2 => Accel::Bvh(Bvh::build(bounds, &bvh::BuildSettings::default())),
+            AccelKind::BvhCourse => Accel::Bvh(Bvh::build(bounds, &bvh::BuildSettings::COURSE)),
         }
     }
 

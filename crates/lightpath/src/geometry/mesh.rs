@@ -208,7 +208,7 @@ impl TriangleMesh {
     pub fn sample_area(&self, u_prim: f32, u: Vec2) -> Option<(ShapeHit, f32)> {
         let d = self.area_distribution();
         let area = self.area();
-        if d.is_empty() || !(area > 0.0) {
+        if d.is_empty() || area.is_nan() || area <= 0.0 {
             return None;
         }
         let (_, _, prim) = d.sample_continuous(u_prim);

@@ -200,7 +200,7 @@ impl Builder {
                 };
                 let clamp = node.float("clamp")?;
                 if let Some(c) = clamp {
-                    if !(c > 0.0) {
+                    if c.is_nan() || c <= 0.0 {
                         return Err(node.error(format!("`clamp` must be positive, got {c}")));
                     }
                 }
@@ -279,7 +279,11 @@ impl Builder {
             }
         }
         let camera = camera.ok_or_else(|| node.error("the scene has no <camera>"))?;
-        let mut scene = Scene::new(instances, Some(camera), self.options.accel);
+        let mut scene = Scene::new(
+            instances,
+            Some(camera),
+            self.options.accel.unwrap_or(default_accel()),
+        );
         scene
             .set_lights(lights, &weights)
             .map_err(|m| node.error(m))?;
@@ -760,8 +764,12 @@ impl Builder {
                     None => {
                         let data = crate::io::load_mesh(&path)
                             .map_err(|e| node.error(format!("cannot load mesh: {e}")))?;
-                        let mesh = TriangleMesh::new(data, smooth, self.options.accel)
-                            .map_err(|m| node.error(format!("{}: {m}", path.display())))?;
+                        let mesh = TriangleMesh::new(
+                            data,
+                            smooth,
+                            self.options.accel.unwrap_or(default_accel()),
+                        )
+                        .map_err(|m| node.error(format!("{}: {m}", path.display())))?;
                         let s = Arc::new(Shape::TriangleMesh(Arc::new(mesh)));
                         self.meshes.insert((canonical, smooth), s.clone());
                         s
@@ -788,9 +796,10 @@ fn point_intensity(node: &Node) -> Result<Vec3> {
     }
 }
 
-/// The accelerator to use when none is asked for.
+/// The accelerator lightwave scenes get when none is asked for: the course's BVH, whose
+/// traversal statistics the course's `bvh` views record.
 pub fn default_accel() -> AccelKind {
-    AccelKind::default()
+    AccelKind::BvhCourse
 }
 
 #[cfg(test)]

@@ -37,8 +37,9 @@ pub struct LoadedScene {
 /// How to load a scene.
 #[derive(Debug, Clone, Default)]
 pub struct LoadOptions {
-    /// Accelerator for meshes and the top level.
-    pub accel: AccelKind,
+    /// Accelerator for meshes and the top level; `None`: the dialect's default (the
+    /// lightwave dialect builds the course's BVH so its statistics views match).
+    pub accel: Option<AccelKind>,
     /// `$name` substitutions (`-D name=value`).
     pub defines: Vec<(String, String)>,
 }

@@ -227,21 +227,21 @@ impl Scene {
                 best = Some((i, h));
             }
         }
-        let mut local_stats = RayStats::default();
         let ray_in = Ray { t_max, ..*ray };
-        self.tlas.intersect(&ray_in, &mut local_stats, |k, t_max| {
-            let i = self.bounded[k as usize];
-            match self.instances[i as usize].intersect(ray, *t_max, stats) {
-                Some(h) => {
-                    *t_max = h.t;
-                    best = Some((i, h));
-                    true
+        self.tlas
+            .intersect(&ray_in, &mut RayStats::default(), |k, t_max| {
+                let i = self.bounded[k as usize];
+                match self.instances[i as usize].intersect(ray, *t_max, stats) {
+                    Some(h) => {
+                        *t_max = h.t;
+                        best = Some((i, h));
+                        true
+                    }
+                    None => false,
                 }
-                None => false,
-            }
-        });
-        // Top-level nodes count as nodes; instance tests are not primitive tests.
-        stats.nodes_visited += local_stats.nodes_visited;
+            });
+        // The counters record bottom-level work only (as the course's `bvh` view does):
+        // top-level nodes and instance tests are not counted.
         let (i, hit) = best?;
         let mut si = self.instances[i as usize].interaction(ray, &hit);
         si.instance = i;
