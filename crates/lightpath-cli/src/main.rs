@@ -66,6 +66,12 @@ pub struct RenderOptions {
     /// lightwave scenes use bvh-course, the course's BVH).
     #[arg(long)]
     pub accel: Option<String>,
+    /// Sampler: independent or sobol (default: the scene's).
+    #[arg(long)]
+    pub sampler: Option<String>,
+    /// Clamp each path's contribution to this value per channel (biased; off by default).
+    #[arg(long)]
+    pub clamp: Option<f32>,
     /// Seed of the random sequences.
     #[arg(long)]
     pub seed: Option<u64>,
@@ -126,6 +132,30 @@ impl RenderOptions {
         if let Some(seed) = self.seed {
             s = s.with_seed(seed);
         }
+        if let Some(kind) = &self.sampler {
+            s = s.with_kind(kind).ok_or_else(|| {
+                anyhow::anyhow!("unknown --sampler `{kind}`; known: independent, sobol")
+            })?;
+        }
         Ok(s)
+    }
+
+    /// The integrator after command-line overrides (`--clamp`).
+    pub fn integrator(
+        &self,
+        i: &lightpath::integrator::Integrator,
+    ) -> Result<lightpath::integrator::Integrator> {
+        use lightpath::integrator::Integrator;
+        let mut i = i.clone();
+        if let Some(c) = self.clamp {
+            if c.is_nan() || c <= 0.0 {
+                anyhow::bail!("--clamp must be positive, got {c}");
+            }
+            match &mut i {
+                Integrator::PathTracer(p) => p.clamp = Some(c),
+                _ => anyhow::bail!("--clamp applies to the pathtracer integrator only"),
+            }
+        }
+        Ok(i)
     }
 }

@@ -34,10 +34,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let stats = render_to(&loaded, &args.output, &args.options)?;
     if !args.options.quiet {
         eprintln!(
-            "wrote {} ({:.2} s, {:.2} M samples/s)",
+            "wrote {} ({:.2} s, {:.2} M samples/s, {:.2} M rays/s)",
             args.output.display(),
             stats.seconds,
-            stats.samples as f64 / stats.seconds.max(1e-9) / 1e6
+            stats.samples as f64 / stats.seconds.max(1e-9) / 1e6,
+            stats.rays as f64 / stats.seconds.max(1e-9) / 1e6
         );
         if stats.non_finite_samples > 0 {
             eprintln!(
@@ -71,6 +72,7 @@ pub fn render_image(
         .as_ref()
         .context("the scene has no camera")?;
     let sampler = options.sampler(&loaded.sampler)?;
+    let integrator = options.integrator(&loaded.integrator)?;
     let name = loaded
         .path
         .file_name()
@@ -80,7 +82,7 @@ pub fn render_image(
     let renderer = Renderer {
         scene: &loaded.scene,
         camera,
-        integrator: &loaded.integrator,
+        integrator: &integrator,
         sampler: &sampler,
     };
     let result = renderer.render(&progress::callback(&bar));

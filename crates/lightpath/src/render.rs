@@ -26,6 +26,8 @@ pub struct RenderStats {
     pub non_finite_samples: u64,
     pub nodes_visited: u64,
     pub prims_tested: u64,
+    /// Rays traced (camera, bounce and shadow rays).
+    pub rays: u64,
 }
 
 /// A render job: the scene's camera, an integrator and a sampler.
@@ -74,6 +76,7 @@ impl Renderer<'_> {
             stats.non_finite_samples += s.non_finite_samples;
             stats.nodes_visited += s.nodes_visited;
             stats.prims_tested += s.prims_tested;
+            stats.rays += s.rays;
         }
         stats.seconds = start.elapsed().as_secs_f64();
         Ok((image, stats))
@@ -111,6 +114,7 @@ impl Renderer<'_> {
                 stats.samples += spp as u64;
                 stats.nodes_visited += ray_stats.nodes_visited as u64;
                 stats.prims_tested += ray_stats.prims_tested as u64;
+                stats.rays += ray_stats.rays as u64;
                 pixels.push(sum / spp as f32);
             }
         }

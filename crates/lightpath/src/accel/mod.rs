@@ -21,6 +21,8 @@ pub struct RayStats {
     pub nodes_visited: u32,
     /// Primitives handed to the intersection closure.
     pub prims_tested: u32,
+    /// Rays traced through the scene (closest-hit and shadow rays).
+    pub rays: u32,
 }
 
 /// Which accelerator to build.

@@ -108,7 +108,7 @@ impl PathTracer {
                             } else {
                                 si.spawn_ray(ls.wi)
                             };
-                            if !scene.occluded(&shadow) {
+                            if !scene.occluded_with_stats(&shadow, stats) {
                                 let mis = if light.is_delta() {
                                     1.0
                                 } else {

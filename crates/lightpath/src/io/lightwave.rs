@@ -233,7 +233,7 @@ impl Builder {
 
     fn sampler(&self, node: &Node) -> Result<Sampler> {
         let sampler = match node.type_name.as_deref() {
-            Some("independent") => {
+            Some(kind @ ("independent" | "sobol")) => {
                 let count = node.int("count")?.unwrap_or(1);
                 if !(1..=1 << 24).contains(&count) {
                     return Err(node.error(format!(
@@ -241,9 +241,11 @@ impl Builder {
                     )));
                 }
                 let seed = node.int("seed")?.unwrap_or(0);
-                Sampler::Independent(IndependentSampler::new(count as u32, seed as u64))
+                let independent =
+                    Sampler::Independent(IndependentSampler::new(count as u32, seed as u64));
+                independent.with_kind(kind).unwrap_or(independent)
             }
-            _ => return Err(unknown_type(node, &["independent"])),
+            _ => return Err(unknown_type(node, &["independent", "sobol"])),
         };
         node.check_all_used()?;
         self.check_children(node, &[])?;

@@ -4,11 +4,13 @@
 mod distribution;
 mod independent;
 mod pcg32;
+mod sobol;
 pub mod warp;
 
 pub use distribution::{Distribution1D, Distribution2D};
 pub use independent::IndependentSampler;
 pub use pcg32::Pcg32;
+pub use sobol::SobolSampler;
 
 use glam::{UVec2, Vec2};
 
@@ -17,10 +19,12 @@ use glam::{UVec2, Vec2};
 ///
 /// ```xml
 /// <sampler type="independent" count="64"/>
+/// <sampler type="sobol" count="64"/>
 /// ```
 #[derive(Debug, Clone)]
 pub enum Sampler {
     Independent(IndependentSampler),
+    Sobol(SobolSampler),
 }
 
 impl Sampler {
@@ -28,6 +32,7 @@ impl Sampler {
     pub fn samples_per_pixel(&self) -> u32 {
         match self {
             Sampler::Independent(s) => s.samples_per_pixel,
+            Sampler::Sobol(s) => s.samples_per_pixel,
         }
     }
 
@@ -36,6 +41,7 @@ impl Sampler {
     pub fn start_pixel_sample(&mut self, pixel: UVec2, index: u32) {
         match self {
             Sampler::Independent(s) => s.start_pixel_sample(pixel, index),
+            Sampler::Sobol(s) => s.start_pixel_sample(pixel, index),
         }
     }
 
@@ -43,6 +49,7 @@ impl Sampler {
     pub fn next_1d(&mut self) -> f32 {
         match self {
             Sampler::Independent(s) => s.next_1d(),
+            Sampler::Sobol(s) => s.next_1d(),
         }
     }
 
@@ -50,6 +57,7 @@ impl Sampler {
     pub fn next_2d(&mut self) -> Vec2 {
         match self {
             Sampler::Independent(s) => s.next_2d(),
+            Sampler::Sobol(s) => s.next_2d(),
         }
     }
 
@@ -57,6 +65,7 @@ impl Sampler {
     pub fn with_samples_per_pixel(&self, spp: u32) -> Sampler {
         match self {
             Sampler::Independent(s) => Sampler::Independent(IndependentSampler::new(spp, s.seed)),
+            Sampler::Sobol(s) => Sampler::Sobol(SobolSampler::new(spp, s.seed)),
         }
     }
 
@@ -66,6 +75,20 @@ impl Sampler {
             Sampler::Independent(s) => {
                 Sampler::Independent(IndependentSampler::new(s.samples_per_pixel, seed))
             }
+            Sampler::Sobol(s) => Sampler::Sobol(SobolSampler::new(s.samples_per_pixel, seed)),
+        }
+    }
+
+    /// The same count and seed with another kind: `independent` or `sobol`.
+    pub fn with_kind(&self, kind: &str) -> Option<Sampler> {
+        let (spp, seed) = match self {
+            Sampler::Independent(s) => (s.samples_per_pixel, s.seed),
+            Sampler::Sobol(s) => (s.samples_per_pixel, s.seed),
+        };
+        match kind {
+            "independent" => Some(Sampler::Independent(IndependentSampler::new(spp, seed))),
+            "sobol" => Some(Sampler::Sobol(SobolSampler::new(spp, seed))),
+            _ => None,
         }
     }
 }

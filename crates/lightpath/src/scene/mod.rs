@@ -219,6 +219,7 @@ impl Scene {
         ray: &Ray,
         stats: &mut RayStats,
     ) -> Option<SurfaceInteraction> {
+        stats.rays += 1;
         let mut best: Option<(u32, ShapeHit)> = None;
         let mut t_max = ray.t_max;
         for &i in &self.unbounded {
@@ -251,7 +252,12 @@ impl Scene {
 
     /// Whether anything blocks the ray within its range (shadow rays).
     pub fn occluded(&self, ray: &Ray) -> bool {
-        let stats = &mut RayStats::default();
+        self.occluded_with_stats(ray, &mut RayStats::default())
+    }
+
+    /// `occluded`, counting the ray into `stats`.
+    pub fn occluded_with_stats(&self, ray: &Ray, stats: &mut RayStats) -> bool {
+        stats.rays += 1;
         if self
             .unbounded
             .iter()
