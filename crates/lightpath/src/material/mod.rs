@@ -45,6 +45,9 @@ mod rough_dielectric;
 mod thin_dielectric;
 mod twosided;
 
+#[cfg(test)]
+mod tests;
+
 pub use blend::Blend;
 pub use conductor::{ComplexIor, Conductor};
 pub use dielectric::Dielectric;
