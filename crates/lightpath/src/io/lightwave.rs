@@ -38,7 +38,10 @@ use crate::integrator::{
     AmbientOcclusion, Aov, AovVariable, CameraDirection, Direct, Integrator, PathTracer,
 };
 use crate::light::{DirectionalLight, Emission, Environment, Light, PointLight, SpotLight};
-use crate::material::{Diffuse, Material};
+use crate::material::{
+    fresnel, Blend, ComplexIor, Conductor, Dielectric, Diffuse, Material, NormalMap, Plastic,
+    Principled, RoughConductor, RoughDielectric, ThinDielectric, TwoSided,
+};
 use crate::math::Transform;
 use crate::sampling::{Distribution2D, IndependentSampler, Sampler};
 use crate::scene::{Instance, Scene};
@@ -460,41 +463,240 @@ impl Builder {
             return Ok(m.clone());
         }
         expect_tag(node, "bsdf")?;
-        let material = match node.type_name.as_deref() {
+        const KNOWN: &[&str] = &[
+            "diffuse",
+            "conductor",
+            "roughconductor",
+            "dielectric",
+            "roughdielectric",
+            "thindielectric",
+            "plastic",
+            "principled",
+            "twosided",
+            "blend",
+            "normalmap",
+        ];
+        // The texture slots of the type; every <texture> child must fill one.
+        let (material, slots): (Material, &[&str]) = match node.type_name.as_deref() {
             Some("diffuse") => {
                 self.check_children(node, &["texture"])?;
-                let albedo = self.named_texture(node, "albedo", Vec3::splat(0.5))?;
-                Material::Diffuse(Diffuse { albedo })
+                let albedo = self.bsdf_slot(node, "albedo", Vec3::splat(0.5))?;
+                (Material::Diffuse(Diffuse { albedo }), &["albedo"])
             }
-            _ => return Err(unknown_type(node, &["diffuse"])),
+            Some("conductor") => {
+                self.check_children(node, &["texture"])?;
+                let reflectance = self.bsdf_slot(node, "reflectance", Vec3::ONE)?;
+                let ior = complex_ior(node)?;
+                (
+                    Material::Conductor(Conductor { reflectance, ior }),
+                    &["reflectance"],
+                )
+            }
+            Some("roughconductor") => {
+                self.check_children(node, &["texture"])?;
+                let reflectance = self.bsdf_slot(node, "reflectance", Vec3::ONE)?;
+                let (roughness_u, roughness_v) = self.bsdf_roughness(node)?;
+                let ior = complex_ior(node)?;
+                (
+                    Material::RoughConductor(RoughConductor {
+                        reflectance,
+                        roughness_u,
+                        roughness_v,
+                        ior,
+                    }),
+                    &["reflectance", "roughness", "roughnessU", "roughnessV"],
+                )
+            }
+            Some(t @ ("dielectric" | "thindielectric")) => {
+                self.check_children(node, &["texture"])?;
+                let ior = self.bsdf_constant(node, "ior", 1.5)?;
+                let reflectance = self.bsdf_slot(node, "reflectance", Vec3::ONE)?;
+                let transmittance = self.bsdf_slot(node, "transmittance", Vec3::ONE)?;
+                let m = if t == "dielectric" {
+                    Material::Dielectric(Dielectric {
+                        ior,
+                        reflectance,
+                        transmittance,
+                    })
+                } else {
+                    Material::ThinDielectric(ThinDielectric {
+                        ior,
+                        reflectance,
+                        transmittance,
+                    })
+                };
+                (m, &["ior", "reflectance", "transmittance"])
+            }
+            Some("roughdielectric") => {
+                self.check_children(node, &["texture"])?;
+                let ior = self.bsdf_constant(node, "ior", 1.5)?;
+                let roughness = self.bsdf_required_slot(node, "roughness")?;
+                let reflectance = self.bsdf_slot(node, "reflectance", Vec3::ONE)?;
+                let transmittance = self.bsdf_slot(node, "transmittance", Vec3::ONE)?;
+                (
+                    Material::RoughDielectric(RoughDielectric {
+                        ior,
+                        roughness,
+                        reflectance,
+                        transmittance,
+                    }),
+                    &["ior", "roughness", "reflectance", "transmittance"],
+                )
+            }
+            Some("plastic") => {
+                self.check_children(node, &["texture"])?;
+                let diffuse = self.bsdf_slot(node, "diffuseReflectance", Vec3::splat(0.5))?;
+                let specular = self.bsdf_slot(node, "specularReflectance", Vec3::ONE)?;
+                let ior = self.bsdf_constant(node, "ior", 1.5)?;
+                let nonlinear = node.bool_or("nonlinear", false)?;
+                (
+                    Material::Plastic(Plastic::new(diffuse, specular, ior, nonlinear)),
+                    &["diffuseReflectance", "specularReflectance", "ior"],
+                )
+            }
+            Some("principled") => {
+                self.check_children(node, &["texture"])?;
+                let base_color = self.bsdf_slot(node, "baseColor", Vec3::splat(0.8))?;
+                let roughness = self.bsdf_slot(node, "roughness", Vec3::splat(0.5))?;
+                let metallic = self.bsdf_slot(node, "metallic", Vec3::ZERO)?;
+                let specular = self.bsdf_slot(node, "specular", Vec3::splat(0.5))?;
+                (
+                    Material::Principled(Principled {
+                        base_color,
+                        roughness,
+                        metallic,
+                        specular,
+                    }),
+                    &["baseColor", "roughness", "metallic", "specular"],
+                )
+            }
+            Some("twosided") => {
+                self.check_children(node, &["bsdf"])?;
+                let inner = self.material(&self.single_child(node, "bsdf")?)?;
+                (Material::TwoSided(TwoSided { inner }), &[])
+            }
+            Some("blend") => {
+                self.check_children(node, &["bsdf", "texture"])?;
+                let children: Vec<Rc<Node>> = node.children_tagged("bsdf").cloned().collect();
+                if children.len() != 2 {
+                    return Err(node.error(format!(
+                        "<bsdf type=\"blend\"> needs exactly two <bsdf> children, found {}",
+                        children.len()
+                    )));
+                }
+                let weight = self.bsdf_slot(node, "weight", Vec3::splat(0.5))?;
+                let first = self.material(&children[0])?;
+                let second = self.material(&children[1])?;
+                (
+                    Material::Blend(Blend {
+                        weight,
+                        first,
+                        second,
+                    }),
+                    &["weight"],
+                )
+            }
+            Some("normalmap") => {
+                self.check_children(node, &["bsdf", "texture"])?;
+                let normal = self.bsdf_required_slot(node, "normal")?;
+                let inner = self.material(&self.single_child(node, "bsdf")?)?;
+                (
+                    Material::NormalMap(NormalMap { normal, inner }),
+                    &["normal"],
+                )
+            }
+            _ => return Err(unknown_type(node, KNOWN)),
         };
+        for t in node.children_tagged("texture") {
+            let name = t.name.as_deref().unwrap_or("");
+            if !slots.contains(&name) {
+                return Err(t.error(format!(
+                    "{} has no texture slot `{name}`; slots: {}",
+                    node.describe(),
+                    if slots.is_empty() {
+                        "none".to_string()
+                    } else {
+                        slots.join(", ")
+                    }
+                )));
+            }
+        }
         node.check_all_used()?;
         let material = Arc::new(material);
         self.materials.insert(key, material.clone());
         Ok(material)
     }
 
-    /// A texture slot: a `<texture name=...>` child, a colour property, or the default.
-    fn named_texture(&mut self, node: &Node, name: &str, default: Vec3) -> Result<Arc<Texture>> {
-        if let Some(t) = node
+    /// A BSDF parameter: a `<texture name=...>` child, or a number or colour property
+    /// (`<float>`, `<color>`, `<rgb>` or an attribute; one number is a grey), or `default`.
+    /// Scalar parameters use the texture's first channel.
+    fn bsdf_slot(&mut self, node: &Node, name: &str, default: Vec3) -> Result<Arc<Texture>> {
+        Ok(self
+            .bsdf_optional_slot(node, name)?
+            .unwrap_or_else(|| Arc::new(Texture::Constant(default))))
+    }
+
+    fn bsdf_optional_slot(&mut self, node: &Node, name: &str) -> Result<Option<Arc<Texture>>> {
+        let mut children = node
+            .children_tagged("texture")
+            .filter(|t| t.name.as_deref() == Some(name));
+        if let Some(t) = children.next() {
+            if let Some(second) = children.next() {
+                return Err(second.error(format!("`{name}` is given twice")));
+            }
+            if node.has(name) {
+                return Err(t.error(format!(
+                    "`{name}` is given both as a texture and as a property"
+                )));
+            }
+            return self.texture(t).map(Some);
+        }
+        Ok(node.vec3(name)?.map(|v| Arc::new(Texture::Constant(v))))
+    }
+
+    fn bsdf_required_slot(&mut self, node: &Node, name: &str) -> Result<Arc<Texture>> {
+        self.bsdf_optional_slot(node, name)?
+            .ok_or_else(|| node.error(format!("{} needs a `{name}`", node.describe())))
+    }
+
+    /// A parameter that must be one number (an index of refraction): a `<float>` or
+    /// attribute, or a constant `<texture>` (its first channel).
+    fn bsdf_constant(&mut self, node: &Node, name: &str, default: f32) -> Result<f32> {
+        let Some(t) = node
             .children_tagged("texture")
             .find(|t| t.name.as_deref() == Some(name))
-        {
-            return self.texture(t);
+        else {
+            let v = node.float_or(name, default)?;
+            if v <= 0.0 {
+                return Err(node.error(format!("`{name}` must be positive, got {v}")));
+            }
+            return Ok(v);
+        };
+        let texture = self.bsdf_required_slot(node, name)?;
+        match *texture {
+            Texture::Constant(c) if c.x > 0.0 => Ok(c.x),
+            Texture::Constant(c) => Err(t.error(format!("`{name}` must be positive, got {}", c.x))),
+            _ => Err(t.error(format!("`{name}` must be a constant"))),
         }
-        if let Some(t) = node
-            .children_tagged("texture")
-            .find(|t| t.name.as_deref() != Some(name))
-        {
-            return Err(t.error(format!(
-                "{} has no texture slot `{}`",
-                node.describe(),
-                t.name.as_deref().unwrap_or("")
-            )));
+    }
+
+    /// `roughness`, or the anisotropic pair `roughnessU` and `roughnessV`.
+    fn bsdf_roughness(&mut self, node: &Node) -> Result<(Arc<Texture>, Arc<Texture>)> {
+        let u = self.bsdf_optional_slot(node, "roughnessU")?;
+        let v = self.bsdf_optional_slot(node, "roughnessV")?;
+        let r = self.bsdf_optional_slot(node, "roughness")?;
+        match (r, u, v) {
+            (Some(r), None, None) => Ok((r.clone(), r)),
+            (None, Some(u), Some(v)) => Ok((u, v)),
+            (None, None, None) => Err(node.error(format!(
+                "{} needs a `roughness` (or `roughnessU` and `roughnessV`)",
+                node.describe()
+            ))),
+            _ => Err(node.error(format!(
+                "{} takes either `roughness` or both `roughnessU` and `roughnessV`",
+                node.describe()
+            ))),
         }
-        Ok(Arc::new(Texture::Constant(
-            node.vec3(name)?.unwrap_or(default),
-        )))
     }
 
     fn transform(&self, node: &Node) -> Result<Transform> {
@@ -716,7 +918,17 @@ impl Builder {
         match node.type_name.as_deref() {
             Some("lambertian") => {
                 self.check_children(node, &["texture"])?;
-                let radiance = self.named_texture(node, "emission", Vec3::ONE)?;
+                if let Some(t) = node
+                    .children_tagged("texture")
+                    .find(|t| t.name.as_deref() != Some("emission"))
+                {
+                    return Err(t.error(format!(
+                        "{} has no texture slot `{}`; slots: emission",
+                        node.describe(),
+                        t.name.as_deref().unwrap_or("")
+                    )));
+                }
+                let radiance = self.bsdf_slot(node, "emission", Vec3::ONE)?;
                 node.check_all_used()?;
                 if !shape.area().is_finite() {
                     return Err(node.error(format!(
@@ -783,6 +995,36 @@ impl Builder {
         node.check_all_used()?;
         self.shapes.insert(key, shape.clone());
         Ok(shape)
+    }
+}
+
+/// A conductor's optional complex index of refraction: a named `material` (see
+/// [`fresnel::METALS`]), or `eta` (and optionally `k`, default 0) colours.
+fn complex_ior(node: &Node) -> Result<Option<ComplexIor>> {
+    let name = node.string("material");
+    let eta = node.vec3("eta")?;
+    let k = node.vec3("k")?;
+    match (name, eta, k) {
+        (None, None, None) => Ok(None),
+        (Some(name), None, None) => match fresnel::metal(&name) {
+            Some((eta, k)) => Ok(Some(ComplexIor { eta, k })),
+            None => {
+                let known: Vec<&str> = fresnel::METALS.iter().map(|m| m.0).collect();
+                Err(node.error(format!(
+                    "unknown conductor material `{name}`; known: {}",
+                    known.join(", ")
+                )))
+            }
+        },
+        (None, Some(eta), k) => {
+            let k = k.unwrap_or(Vec3::ZERO);
+            if eta.min_element() <= 0.0 || k.min_element() < 0.0 {
+                return Err(node.error("conductor `eta` must be positive and `k` non-negative"));
+            }
+            Ok(Some(ComplexIor { eta, k }))
+        }
+        (None, None, Some(_)) => Err(node.error("conductor `k` needs an `eta`")),
+        (Some(_), _, _) => Err(node.error("conductor: give either `material` or `eta`/`k`")),
     }
 }
 

@@ -7,6 +7,7 @@
 //! </bsdf>
 //! ```
 
+use super::BsdfSample;
 use crate::math::INV_PI;
 use crate::sampling::warp;
 use crate::texture::Texture;
@@ -19,6 +20,7 @@ pub struct Diffuse {
 }
 
 impl Diffuse {
+    /// f·|cos θi| in the local frame.
     #[inline]
     pub fn eval(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> Vec3 {
         if wo.z * wi.z <= 0.0 {
@@ -28,7 +30,7 @@ impl Diffuse {
     }
 
     #[inline]
-    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+    pub fn pdf(&self, _uv: Vec2, wo: Vec3, wi: Vec3) -> f32 {
         if wo.z * wi.z <= 0.0 {
             return 0.0;
         }
@@ -37,7 +39,7 @@ impl Diffuse {
 
     /// Cosine-weighted sampling on wo's side; the weight is the albedo.
     #[inline]
-    pub fn sample(&self, uv: Vec2, wo: Vec3, u: Vec2) -> Option<(Vec3, Vec3, f32)> {
+    pub fn sample(&self, uv: Vec2, wo: Vec3, _u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         let mut wi = warp::square_to_cosine_hemisphere(u);
         if wo.z < 0.0 {
             wi.z = -wi.z;
@@ -46,7 +48,12 @@ impl Diffuse {
         if pdf <= 0.0 || wo.z == 0.0 {
             return None;
         }
-        Some((wi, self.albedo.eval(uv), pdf))
+        Some(BsdfSample {
+            wi,
+            weight: self.albedo.eval(uv),
+            pdf,
+            delta: false,
+        })
     }
 }
 
@@ -60,15 +67,21 @@ mod tests {
         let d = Diffuse {
             albedo: Arc::new(Texture::Constant(Vec3::new(0.2, 0.5, 0.8))),
         };
+        let uv = Vec2::ZERO;
         let mut rng = Pcg32::new(4, 4);
         let wo = Vec3::new(0.3, 0.1, 0.9).normalize();
         for _ in 0..1000 {
-            let (wi, w, pdf) = d
-                .sample(Vec2::ZERO, wo, Vec2::new(rng.next_f32(), rng.next_f32()))
+            let s = d
+                .sample(uv, wo, 0.5, Vec2::new(rng.next_f32(), rng.next_f32()))
                 .unwrap();
-            assert!((d.pdf(wo, wi) - pdf).abs() < 1e-5);
-            if pdf > 1e-3 {
-                assert!((d.eval(Vec2::ZERO, wo, wi) / pdf - w).abs().max_element() < 1e-4);
+            assert!((d.pdf(uv, wo, s.wi) - s.pdf).abs() < 1e-5);
+            if s.pdf > 1e-3 {
+                assert!(
+                    (d.eval(uv, wo, s.wi) / s.pdf - s.weight)
+                        .abs()
+                        .max_element()
+                        < 1e-4
+                );
             }
         }
         // The pdf integrates to 1 over the hemisphere (uniform-sphere Monte Carlo).
@@ -76,13 +89,11 @@ mod tests {
         let mut sum = 0.0;
         for _ in 0..n {
             let wi = warp::square_to_uniform_sphere(Vec2::new(rng.next_f32(), rng.next_f32()));
-            sum += d.pdf(wo, wi) / warp::UNIFORM_SPHERE_PDF;
+            sum += d.pdf(uv, wo, wi) / warp::UNIFORM_SPHERE_PDF;
         }
         assert!((sum / n as f32 - 1.0).abs() < 0.01);
         // Reciprocity.
         let wi = Vec3::new(-0.5, 0.2, 0.6).normalize();
-        assert!(
-            (d.eval(Vec2::ZERO, wo, wi) / wi.z - d.eval(Vec2::ZERO, wi, wo) / wo.z).length() < 1e-6
-        );
+        assert!((d.eval(uv, wo, wi) / wi.z - d.eval(uv, wi, wo) / wo.z).length() < 1e-6);
     }
 }

@@ -1,25 +1,75 @@
 //! Materials: they turn a surface interaction into a BSDF, evaluated and sampled in the
-//! local shading frame (normal = +z). `eval` returns f·|cos θi|; `sample` returns a
-//! direction with its weight f·|cos θi|/pdf.
+//! local shading frame (normal = +z, tangent = dp/du made orthogonal to the normal).
+//! `eval` returns f·|cos θi|; `sample` returns a direction with its weight
+//! f·|cos θi|/pdf. Directions point away from the surface: `wo` toward the viewer, `wi`
+//! toward the light. Transport is of radiance (camera paths): refraction into a medium of
+//! relative index η scales by 1/η².
+//!
+//! Delta lobes (mirrors, smooth glass, plastic's coating) are invisible to `eval` and
+//! `pdf`; their samples carry `delta: true`, and their `pdf` is the discrete probability
+//! of having picked the lobe. Integrators must not apply MIS to such samples.
+//!
+//! Each variant's struct exposes `eval`/`pdf`/`sample` in the local frame (taking the
+//! texture coordinates `uv`), and [`Material`] has the same as `*_local`.
 //!
 //! ```xml
-//! <bsdf type="diffuse">
-//!     <texture name="albedo" type="constant" value="0.8"/>
-//! </bsdf>
+//! <bsdf type="diffuse"><texture name="albedo" type="constant" value="0.8"/></bsdf>
+//! <bsdf type="conductor"><texture name="reflectance" type="constant" value="1,0.7,0.3"/></bsdf>
+//! <bsdf type="roughconductor"><texture name="reflectance" type="constant" value="0.9"/><float name="roughness" value="0.2"/></bsdf>
+//! <bsdf type="dielectric"><float name="ior" value="1.5"/></bsdf>
+//! <bsdf type="roughdielectric"><float name="ior" value="1.5"/><float name="roughness" value="0.3"/></bsdf>
+//! <bsdf type="thindielectric"><float name="ior" value="1.5"/></bsdf>
+//! <bsdf type="plastic"><texture name="diffuseReflectance" type="constant" value="0.2,0.4,0.8"/><float name="ior" value="1.5"/></bsdf>
+//! <bsdf type="principled"><texture name="baseColor" type="constant" value="0.8,0.1,0.1"/><float name="roughness" value="0.4"/>
+//!     <float name="metallic" value="0"/><float name="specular" value="0.5"/></bsdf>
+//! <bsdf type="twosided"><bsdf type="plastic"/></bsdf>
+//! <bsdf type="blend"><float name="weight" value="0.3"/><bsdf type="diffuse"/><bsdf type="conductor"/></bsdf>
+//! <bsdf type="normalmap"><texture name="normal" type="image" filename="n.png" linear="true"/><bsdf type="diffuse"/></bsdf>
 //! ```
+//!
+//! Scalar parameters (roughness, metallic, ...) may be `<float>`s or textures; a texture
+//! gives its first channel, as lightwave's `Texture::scalar` does. See each module for
+//! the exact model.
 
+mod blend;
+mod conductor;
+mod dielectric;
 mod diffuse;
+pub mod fresnel;
+pub mod microfacet;
+mod normalmap;
+mod plastic;
+mod principled;
+mod rough_conductor;
+mod rough_dielectric;
+mod thin_dielectric;
+mod twosided;
 
+#[cfg(test)]
+mod tests;
+
+pub use blend::Blend;
+pub use conductor::{ComplexIor, Conductor};
+pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
+pub use normalmap::NormalMap;
+pub use plastic::Plastic;
+pub use principled::Principled;
+pub use rough_conductor::RoughConductor;
+pub use rough_dielectric::RoughDielectric;
+pub use thin_dielectric::ThinDielectric;
+pub use twosided::TwoSided;
 
 use crate::geometry::SurfaceInteraction;
 use crate::math::Frame;
+use crate::texture::Texture;
 use glam::{Vec2, Vec3};
 
 /// A sampled direction.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BsdfSample {
-    /// Incident direction in render space.
+    /// Incident direction (render space from [`Material::sample`], local from the
+    /// `*_local` methods).
     pub wi: Vec3,
     /// f·|cos θi| / pdf.
     pub weight: Vec3,
@@ -35,31 +85,82 @@ pub struct BsdfSample {
 #[derive(Debug, Clone)]
 pub enum Material {
     Diffuse(Diffuse),
+    Conductor(Conductor),
+    RoughConductor(RoughConductor),
+    Dielectric(Dielectric),
+    RoughDielectric(RoughDielectric),
+    ThinDielectric(ThinDielectric),
+    Plastic(Plastic),
+    Principled(Principled),
+    TwoSided(TwoSided),
+    Blend(Blend),
+    NormalMap(NormalMap),
 }
 
-/// The shading frame of an interaction.
+/// A frame with normal `n` whose first axis is `tangent` made orthogonal to `n`
+/// (Gram–Schmidt); falls back to [`Frame::from_normal`] when the tangent is (nearly)
+/// parallel to `n`, zero or not finite.
+#[inline]
+pub fn frame_from_normal_and_tangent(n: Vec3, tangent: Vec3) -> Frame {
+    let t = tangent - n * n.dot(tangent);
+    let len2 = t.length_squared();
+    if len2.is_finite() && len2 > 1e-8 * tangent.length_squared() && len2 > 0.0 {
+        let s = t / len2.sqrt();
+        Frame {
+            s,
+            t: n.cross(s),
+            n,
+        }
+    } else {
+        Frame::from_normal(n)
+    }
+}
+
+/// The shading frame of an interaction: the shading normal with dp/du as the tangent.
 #[inline]
 pub fn shading_frame(si: &SurfaceInteraction) -> Frame {
-    Frame::from_normal(si.shading_n)
+    frame_from_normal_and_tangent(si.shading_n, si.dpdu)
+}
+
+/// A scalar parameter from a texture: its first channel (lightwave's `scalar`).
+#[inline]
+pub(crate) fn scalar(t: &Texture, uv: Vec2) -> f32 {
+    t.eval(uv).x
+}
+
+/// A usable density: positive and finite (false for NaN).
+#[inline]
+pub(crate) fn valid_pdf(pdf: f32) -> bool {
+    pdf > 0.0 && pdf.is_finite()
+}
+
+/// Mirrors a direction through the tangent plane.
+#[inline]
+pub(crate) fn mirror_z(v: Vec3) -> Vec3 {
+    Vec3::new(v.x, v.y, -v.z)
+}
+
+/// Mirrors (wo, wi) together so that wo is in the upper hemisphere.
+#[inline]
+pub(crate) fn mirror_to_upper(wo: Vec3, wi: Vec3) -> (Vec3, Vec3) {
+    if wo.z < 0.0 {
+        (mirror_z(wo), mirror_z(wi))
+    } else {
+        (wo, wi)
+    }
 }
 
 impl Material {
-    /// f(wo, wi)·|cos θi| for render-space directions.
+    /// f(wo, wi)·|cos θi| for render-space unit directions.
     pub fn eval(&self, si: &SurfaceInteraction, wo: Vec3, wi: Vec3) -> Vec3 {
         let frame = shading_frame(si);
-        let (wo, wi) = (frame.to_local(wo), frame.to_local(wi));
-        match self {
-            Material::Diffuse(m) => m.eval(si.uv, wo, wi),
-        }
+        self.eval_local(si.uv, frame.to_local(wo), frame.to_local(wi))
     }
 
-    /// Density with which `sample` picks `wi`.
+    /// Density with which `sample` picks `wi` (0 for directions only delta lobes reach).
     pub fn pdf(&self, si: &SurfaceInteraction, wo: Vec3, wi: Vec3) -> f32 {
         let frame = shading_frame(si);
-        let (wo, wi) = (frame.to_local(wo), frame.to_local(wi));
-        match self {
-            Material::Diffuse(m) => m.pdf(wo, wi),
-        }
+        self.pdf_local(si.uv, frame.to_local(wo), frame.to_local(wi))
     }
 
     /// Samples an incident direction: `u_lobe` picks a lobe, `u` the direction in it.
@@ -70,25 +171,79 @@ impl Material {
         u_lobe: f32,
         u: Vec2,
     ) -> Option<BsdfSample> {
-        let _ = u_lobe;
         let frame = shading_frame(si);
-        let wo_local = frame.to_local(wo);
-        let (wi, weight, pdf) = match self {
-            Material::Diffuse(m) => m.sample(si.uv, wo_local, u)?,
-        };
-        Some(BsdfSample {
-            wi: frame.to_world(wi),
-            weight,
-            pdf,
-            delta: false,
-        })
+        let mut bs = self.sample_local(si.uv, frame.to_local(wo), u_lobe, u)?;
+        if !valid_pdf(bs.pdf) || !bs.weight.is_finite() {
+            return None;
+        }
+        bs.wi = frame.to_world(bs.wi);
+        Some(bs)
+    }
+
+    /// f·|cos θi| in the local shading frame.
+    pub fn eval_local(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> Vec3 {
+        match self {
+            Material::Diffuse(m) => m.eval(uv, wo, wi),
+            Material::Conductor(m) => m.eval(uv, wo, wi),
+            Material::RoughConductor(m) => m.eval(uv, wo, wi),
+            Material::Dielectric(m) => m.eval(uv, wo, wi),
+            Material::RoughDielectric(m) => m.eval(uv, wo, wi),
+            Material::ThinDielectric(m) => m.eval(uv, wo, wi),
+            Material::Plastic(m) => m.eval(uv, wo, wi),
+            Material::Principled(m) => m.eval(uv, wo, wi),
+            Material::TwoSided(m) => m.eval(uv, wo, wi),
+            Material::Blend(m) => m.eval(uv, wo, wi),
+            Material::NormalMap(m) => m.eval(uv, wo, wi),
+        }
+    }
+
+    /// The sampling density in the local shading frame.
+    pub fn pdf_local(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> f32 {
+        match self {
+            Material::Diffuse(m) => m.pdf(uv, wo, wi),
+            Material::Conductor(m) => m.pdf(uv, wo, wi),
+            Material::RoughConductor(m) => m.pdf(uv, wo, wi),
+            Material::Dielectric(m) => m.pdf(uv, wo, wi),
+            Material::RoughDielectric(m) => m.pdf(uv, wo, wi),
+            Material::ThinDielectric(m) => m.pdf(uv, wo, wi),
+            Material::Plastic(m) => m.pdf(uv, wo, wi),
+            Material::Principled(m) => m.pdf(uv, wo, wi),
+            Material::TwoSided(m) => m.pdf(uv, wo, wi),
+            Material::Blend(m) => m.pdf(uv, wo, wi),
+            Material::NormalMap(m) => m.pdf(uv, wo, wi),
+        }
+    }
+
+    /// Samples in the local shading frame (`wi` is local too).
+    pub fn sample_local(&self, uv: Vec2, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        match self {
+            Material::Diffuse(m) => m.sample(uv, wo, u_lobe, u),
+            Material::Conductor(m) => m.sample(uv, wo, u_lobe, u),
+            Material::RoughConductor(m) => m.sample(uv, wo, u_lobe, u),
+            Material::Dielectric(m) => m.sample(uv, wo, u_lobe, u),
+            Material::RoughDielectric(m) => m.sample(uv, wo, u_lobe, u),
+            Material::ThinDielectric(m) => m.sample(uv, wo, u_lobe, u),
+            Material::Plastic(m) => m.sample(uv, wo, u_lobe, u),
+            Material::Principled(m) => m.sample(uv, wo, u_lobe, u),
+            Material::TwoSided(m) => m.sample(uv, wo, u_lobe, u),
+            Material::Blend(m) => m.sample(uv, wo, u_lobe, u),
+            Material::NormalMap(m) => m.sample(uv, wo, u_lobe, u),
+        }
     }
 
     /// True when every lobe is a delta (a mirror or smooth glass): next-event estimation
     /// is useless there.
     pub fn is_delta(&self) -> bool {
         match self {
-            Material::Diffuse(_) => false,
+            Material::Conductor(_) | Material::Dielectric(_) | Material::ThinDielectric(_) => true,
+            Material::RoughDielectric(m) => m.is_pass_through(),
+            Material::Diffuse(_)
+            | Material::RoughConductor(_)
+            | Material::Plastic(_)
+            | Material::Principled(_) => false,
+            Material::TwoSided(m) => m.inner.is_delta(),
+            Material::NormalMap(m) => m.inner.is_delta(),
+            Material::Blend(m) => m.first.is_delta() && m.second.is_delta(),
         }
     }
 }

@@ -1,0 +1,57 @@
+//! Normal mapping: a tangent-space normal n = 2·rgb − 1 from a (linear) image, expressed
+//! in the shading frame (dp/du, n × dp/du, shading normal), replaces the shading normal;
+//! the nested BSDF is evaluated in the perturbed frame (its tangent is dp/du made
+//! orthogonal to the new normal). The value returned is the nested BSDF's f·|cos θi|
+//! with the perturbed cosine. The bitangent is n × dp/du: for meshes whose uv mapping is
+//! mirrored (dp/dv pointing the other way) the map's green channel is flipped.
+//!
+//! ```xml
+//! <bsdf type="normalmap">
+//!     <texture name="normal" type="image" filename="bricks_normal.png" linear="true"/>
+//!     <bsdf type="diffuse"/>
+//! </bsdf>
+//! ```
+
+use super::{BsdfSample, Material};
+use crate::math::Frame;
+use crate::texture::Texture;
+use glam::{Vec2, Vec3};
+use std::sync::Arc;
+
+#[derive(Debug, Clone)]
+pub struct NormalMap {
+    pub normal: Arc<Texture>,
+    pub inner: Arc<Material>,
+}
+
+impl NormalMap {
+    /// The perturbed frame in local shading coordinates.
+    pub fn frame(&self, uv: Vec2) -> Frame {
+        let n = (2.0 * self.normal.eval(uv) - Vec3::ONE).normalize_or_zero();
+        if n == Vec3::ZERO || !n.is_finite() {
+            return Frame {
+                s: Vec3::X,
+                t: Vec3::Y,
+                n: Vec3::Z,
+            };
+        }
+        super::frame_from_normal_and_tangent(n, Vec3::X)
+    }
+
+    pub fn eval(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> Vec3 {
+        let f = self.frame(uv);
+        self.inner.eval_local(uv, f.to_local(wo), f.to_local(wi))
+    }
+
+    pub fn pdf(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> f32 {
+        let f = self.frame(uv);
+        self.inner.pdf_local(uv, f.to_local(wo), f.to_local(wi))
+    }
+
+    pub fn sample(&self, uv: Vec2, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        let f = self.frame(uv);
+        let mut bs = self.inner.sample_local(uv, f.to_local(wo), u_lobe, u)?;
+        bs.wi = f.to_world(bs.wi);
+        Some(bs)
+    }
+}
