@@ -42,21 +42,36 @@ impl Dielectric {
             return None;
         }
         let (f, cos_t) = fresnel_dielectric_cos(wo.z, self.ior);
-        if u_lobe < f {
+        // Choose reflection or refraction in proportion to what each carries (Fresnel
+        // times the tint's mean), not by Fresnel alone: a black transmittance never
+        // wastes a sample on refraction. Unbiased either way.
+        let reflectance = self.reflectance.eval(uv);
+        let transmittance = self.transmittance.eval(uv);
+        let (r_mean, t_mean) = (
+            reflectance.element_sum() / 3.0,
+            transmittance.element_sum() / 3.0,
+        );
+        let (pr, pt) = (f * r_mean, (1.0 - f) * t_mean);
+        let p_reflect = if pr + pt > 0.0 { pr / (pr + pt) } else { f };
+        if u_lobe < p_reflect {
             return Some(BsdfSample {
                 wi: Vec3::new(-wo.x, -wo.y, wo.z),
-                weight: self.reflectance.eval(uv),
-                pdf: f,
+                weight: reflectance * (f / p_reflect),
+                pdf: p_reflect,
                 delta: true,
             });
         }
         // Relative index across the interface as seen from wo's side.
         let eta = if wo.z > 0.0 { self.ior } else { 1.0 / self.ior };
         let wi = Vec3::new(-wo.x / eta, -wo.y / eta, -cos_t.copysign(wo.z));
+        let p_refract = 1.0 - p_reflect;
+        if p_refract <= 0.0 {
+            return None;
+        }
         Some(BsdfSample {
             wi,
-            weight: self.transmittance.eval(uv) / (eta * eta),
-            pdf: 1.0 - f,
+            weight: transmittance * ((1.0 - f) / p_refract) / (eta * eta),
+            pdf: p_refract,
             delta: true,
         })
     }
