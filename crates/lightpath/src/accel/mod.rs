@@ -33,7 +33,7 @@ pub enum AccelKind {
     /// Binary BVH with a binned SAH build.
     #[default]
     Bvh2,
-    /// The lightwave course's binary BVH (16 bins, leaves of at most two primitives, no
+    /// The lightwave course's binary BVH (binned SAH, leaves of at most two primitives, no
     /// SAH termination): the tree whose statistics the course's `bvh` views show.
     BvhCourse,
 }
