@@ -1,0 +1,51 @@
+#!/usr/bin/env bash
+# Speed and equal-time error of lightpath against Mitsuba 3 on the Cornell box, measured
+# in one run on this machine (see ../shared/tools/mitsuba-ref/README.md for the setup:
+# a venv with mitsuba, and Debian's libllvm19 for the llvm variants).
+#
+#   benches/mitsuba-compare.sh [VENV]      (default VENV: /tmp/venv-mitsuba)
+#
+# Prints samples/s of lightpath (independent and sobol samplers) and of Mitsuba's
+# llvm_ad_rgb and scalar_rgb variants at 256x256, max depth 8, 2 threads, and the relMSE
+# of each against a high-sample Mitsuba reference when both render for the same time.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+VENV=${1:-/tmp/venv-mitsuba}
+SHARED=../shared
+MI_SCENE=$SHARED/models/cornell-box/mitsuba/cbox-rgb.xml
+TOOLS=$SHARED/tools/mitsuba-ref
+OUT=${OUT:-target/mitsuba-compare}
+mkdir -p "$OUT"
+export DRJIT_LIBLLVM_PATH=${DRJIT_LIBLLVM_PATH:-$(dpkg -L libllvm19 2>/dev/null | grep 'libLLVM.so.19' | head -1)}
+PY=$VENV/bin/python
+cargo build --release --bin lightpath -q
+LP=./target/release/lightpath
+REF_SPP=${REF_SPP:-4096}
+
+mitsuba() { # variant spp out.exr -> prints seconds
+    "$PY" "$TOOLS/render.py" "$MI_SCENE" --spp "$2" --variant "$1" --threads 2 \
+        -D max_depth=8 -D res=256 -o "$3" --json "$3.json" >/dev/null 2>&1
+    "$PY" -c "import json,sys; d=json.load(open(sys.argv[1])); print(d['render_s'])" "$3.json"
+}
+lightpath() { # sampler spp out.exr -> prints seconds
+    "$LP" render benches/scenes/cbox.xml -D spp="$2" -D depth=8 -D res=256 -D sampler="$1" \
+        --threads 2 -o "$3" 2>&1 | sed -n 's/.*(\([0-9.]*\) s,.*/\1/p'
+}
+relmse() {
+    "$PY" "$TOOLS/compare.py" "$1" "$OUT/ref.exr" | sed -n 's/.*relMSE=\([0-9.e-]*\).*/\1/p'
+}
+
+[ -f "$OUT/ref.exr" ] || { echo "reference: mitsuba llvm_ad_rgb, $REF_SPP spp"; mitsuba llvm_ad_rgb "$REF_SPP" "$OUT/ref.exr" >/dev/null; }
+mitsuba llvm_ad_rgb 16 "$OUT/warmup.exr" >/dev/null   # JIT cache
+
+printf "%-26s %6s %9s %12s %10s\n" renderer spp seconds "Msamples/s" relMSE
+row() { printf "%-26s %6s %9.3f %12.3f %10.3e\n" "$1" "$2" "$3" "$(echo "$2 * 65536 / $3 / 1000000" | bc -l)" "$4"; }
+T=$(mitsuba llvm_ad_rgb 64 "$OUT/mi-llvm.exr"); row "mitsuba llvm_ad_rgb" 64 "$T" "$(relmse "$OUT/mi-llvm.exr")"
+T_MI=$T
+T=$(mitsuba scalar_rgb 16 "$OUT/mi-scalar.exr"); row "mitsuba scalar_rgb" 16 "$T" "$(relmse "$OUT/mi-scalar.exr")"
+for s in independent sobol; do
+    T=$(lightpath $s 64 "$OUT/lp-$s.exr"); row "lightpath $s" 64 "$T" "$(relmse "$OUT/lp-$s.exr")"
+    # Equal time: as many samples as fit in Mitsuba llvm's 64-spp time.
+    SPP=$(echo "64 * $T_MI / $T" | bc -l | awk '{n=int($1+0.5); if(n<1)n=1; print n}')
+    T2=$(lightpath $s "$SPP" "$OUT/lp-$s-eq.exr"); row "lightpath $s (equal time)" "$SPP" "$T2" "$(relmse "$OUT/lp-$s-eq.exr")"
+done
