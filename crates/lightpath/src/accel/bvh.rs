@@ -386,6 +386,36 @@ impl Bvh {
         }
     }
 
+    /// The boxes of a breadth-first cut through the top of the tree, about `max_boxes`
+    /// of them, covering every primitive.
+    pub fn cover(&self, max_boxes: usize) -> Vec<Bounds3> {
+        if self.nodes.is_empty() || self.prim_indices.is_empty() {
+            return Vec::new();
+        }
+        let mut cut = vec![0u32];
+        loop {
+            let mut next = Vec::with_capacity(cut.len() * 2);
+            let mut split_any = false;
+            for &n in &cut {
+                let node = &self.nodes[n as usize];
+                if node.is_leaf() {
+                    next.push(n);
+                } else {
+                    next.push(node.left_or_first);
+                    next.push(node.left_or_first + 1);
+                    split_any = true;
+                }
+            }
+            if !split_any || next.len() > max_boxes {
+                break;
+            }
+            cut = next;
+        }
+        cut.iter()
+            .map(|&n| self.nodes[n as usize].bounds())
+            .collect()
+    }
+
     pub fn memory_bytes(&self) -> usize {
         self.nodes.len() * std::mem::size_of::<BvhNode>() + self.prim_indices.len() * 4
     }

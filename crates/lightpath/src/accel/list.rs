@@ -11,6 +11,15 @@ pub struct ListAccel {
 }
 
 impl ListAccel {
+    /// The primitive boxes if there are few, else the overall box.
+    pub fn cover(&self, max_boxes: usize) -> Vec<Bounds3> {
+        if self.boxes.len() <= max_boxes {
+            self.boxes.clone()
+        } else {
+            vec![self.bounds]
+        }
+    }
+
     pub fn new(bounds: &[Bounds3]) -> Self {
         let total = bounds.iter().fold(Bounds3::EMPTY, |acc, b| acc.union(b));
         ListAccel {

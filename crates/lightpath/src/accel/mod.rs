@@ -112,4 +112,14 @@ impl Accel {
             Accel::Bvh(a) => a.memory_bytes(),
         }
     }
+
+    /// A few boxes (at most about `max_boxes`) whose union covers everything, each much
+    /// tighter than the overall box: the top of the tree. Transforming these and taking
+    /// their union gives a tight box for a rotated instance.
+    pub fn cover(&self, max_boxes: usize) -> Vec<Bounds3> {
+        match self {
+            Accel::List(a) => a.cover(max_boxes),
+            Accel::Bvh(a) => a.cover(max_boxes),
+        }
+    }
 }

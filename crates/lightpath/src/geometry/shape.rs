@@ -82,6 +82,42 @@ impl Shape {
         }
     }
 
+    /// A tight render-space box of the shape under `render_from_object`: exact for the
+    /// analytic shapes (a rotated sphere's box is not the rotated box's box), and for
+    /// meshes the union of the transformed boxes at the top of their BVH.
+    pub fn render_bounds(&self, render_from_object: &crate::math::Transform) -> Bounds3 {
+        let t = render_from_object;
+        if !t.is_affine() {
+            return t.bounds(&self.bounds());
+        }
+        let m = glam::Mat3::from_mat4(*t.matrix());
+        // Half-extent per render axis of the unit circle in the object xy plane.
+        let circle = Vec3::new(
+            m.row(0).truncate().length(),
+            m.row(1).truncate().length(),
+            m.row(2).truncate().length(),
+        );
+        let disk_at = |z: f32| {
+            let c = t.point(Vec3::new(0.0, 0.0, z));
+            Bounds3::new(c - circle, c + circle)
+        };
+        match self {
+            Shape::Sphere(_) => {
+                let c = t.point(Vec3::ZERO);
+                let e = Vec3::new(m.row(0).length(), m.row(1).length(), m.row(2).length());
+                Bounds3::new(c - e, c + e)
+            }
+            Shape::Disk(_) => disk_at(0.0),
+            Shape::Cylinder(_) => disk_at(0.0).union(&disk_at(1.0)),
+            Shape::TriangleMesh(mesh) => mesh
+                .accel
+                .cover(64)
+                .iter()
+                .fold(Bounds3::EMPTY, |acc, b| acc.union(&t.bounds(b))),
+            _ => t.bounds(&self.bounds()),
+        }
+    }
+
     /// Object-space surface area (infinite for the plane).
     pub fn area(&self) -> f32 {
         match self {

@@ -233,7 +233,7 @@ impl Transform {
     }
 
     /// Whether the last row is (0, 0, 0, 1).
-    fn is_affine(&self) -> bool {
+    pub fn is_affine(&self) -> bool {
         self.m.row(3) == Vec4::W
     }
 

@@ -32,7 +32,7 @@ pub struct Instance {
 
 impl Instance {
     pub fn new(shape: Arc<Shape>, render_from_object: Transform) -> Self {
-        let bounds = render_from_object.bounds(&shape.bounds());
+        let bounds = shape.render_bounds(&render_from_object);
         Instance {
             shape,
             render_from_object,
@@ -420,6 +420,62 @@ mod tests {
             acne, 0,
             "{acne} of {spawned} spawned rays re-hit their own surface"
         );
+    }
+
+    /// Instance boxes contain the whole transformed shape and are tight: surface samples
+    /// reach every face of the box (within 2% of its size) for the analytic shapes, and a
+    /// rotated mesh's box is smaller than the box of its rotated object box.
+    #[test]
+    fn instance_bounds_are_conservative_and_tight() {
+        let mut rng = Pcg32::new(8, 1);
+        let mut data = crate::geometry::MeshData::default();
+        for i in 0..200 {
+            let a = i as f32 * 0.0314;
+            let p = Vec3::new(a.cos(), a.sin(), (i as f32 / 200.0) * 2.0 - 1.0);
+            data.positions.extend([p, p * 0.95, p + Vec3::Z * 0.01]);
+            data.indices.push([3 * i, 3 * i + 1, 3 * i + 2]);
+        }
+        let mesh = TriangleMesh::new(data, false, crate::accel::AccelKind::Bvh2).unwrap();
+        let shapes = [
+            Shape::Sphere(Sphere),
+            Shape::Disk(Disk),
+            Shape::Cylinder(Cylinder { caps: true }),
+            Shape::Cuboid(Cuboid),
+            Shape::Rectangle(Rectangle),
+            Shape::TriangleMesh(std::sync::Arc::new(mesh)),
+        ];
+        for shape in &shapes {
+            for _ in 0..20 {
+                let t = random_transform(&mut rng);
+                let b = shape.render_bounds(&t);
+                let mut reach = Bounds3::EMPTY;
+                for _ in 0..4000 {
+                    let (si, _) = shape
+                        .sample_area(rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()))
+                        .unwrap();
+                    let p = t.point(si.p);
+                    let slack = 1e-4 * (1.0 + p.abs().max_element());
+                    assert!(
+                        (p - b.min).min_element() >= -slack && (b.max - p).min_element() >= -slack,
+                        "{}: {p:?} outside {b:?}",
+                        shape.kind_name()
+                    );
+                    reach.expand(p);
+                }
+                let size = b.diagonal().max_element();
+                let gap = (reach.min - b.min).max(b.max - reach.max).max_element();
+                if !matches!(shape, Shape::TriangleMesh(_)) {
+                    assert!(
+                        gap < 0.02 * size,
+                        "{}: box not tight, gap {gap}",
+                        shape.kind_name()
+                    );
+                } else {
+                    let loose = t.bounds(&shape.bounds());
+                    assert!(b.surface_area() <= loose.surface_area() * 1.0001);
+                }
+            }
+        }
     }
 
     #[test]
