@@ -61,6 +61,7 @@ pub fn build(root: &Rc<Node>, path: &Path, options: &LoadOptions) -> Result<Load
         path: path.to_path_buf(),
         options: options.clone(),
         shapes: HashMap::new(),
+        groups: HashMap::new(),
         meshes: HashMap::new(),
         textures: HashMap::new(),
         materials: HashMap::new(),
@@ -74,6 +75,8 @@ struct Builder {
     options: LoadOptions,
     /// Shapes built so far, by node identity (a `<ref>`'d shape is built once).
     shapes: HashMap<*const Node, Arc<Shape>>,
+    /// Groups by node, as instances relative to the group (built once, placed many times).
+    groups: HashMap<*const Node, Arc<Vec<Instance>>>,
     /// Meshes by file and smoothing, so a file named by many instances loads once.
     meshes: HashMap<(PathBuf, bool), Arc<Shape>>,
     textures: HashMap<*const Node, Arc<Texture>>,
@@ -270,7 +273,7 @@ impl Builder {
                     }
                     camera = Some(self.camera(child)?);
                 }
-                "instance" => instances.push(self.instance(child)?),
+                "instance" => instances.extend(self.instance(child, 0)?),
                 // Shapes defined at scene level (with an id) are for later <ref>s.
                 "shape" | "bsdf" | "texture" if child.id.is_some() => {}
                 "light" => {
@@ -891,12 +894,18 @@ impl Builder {
         }
     }
 
-    fn instance(&mut self, node: &Node) -> Result<Instance> {
+    /// An `<instance>`: one instance, or for a `group` shape every instance of the group
+    /// (recursively) placed by this instance's transform. Materials of the group's own
+    /// instances win; those without one take this instance's.
+    fn instance(&mut self, node: &Node, depth: usize) -> Result<Vec<Instance>> {
         node.check_all_used()?;
         self.check_children(node, &["shape", "transform", "bsdf", "emission"])?;
         let shape_node = self.single_child(node, "shape")?;
-        let shape = self.shape(&shape_node)?;
         let render_from_object = self.optional_transform(node)?;
+        if shape_node.type_name.as_deref() == Some("group") {
+            return self.place_group(node, &shape_node, &render_from_object, depth);
+        }
+        let shape = self.shape(&shape_node)?;
         let mut instance = Instance::new(shape, render_from_object);
         if node.children_tagged("emission").count() > 1 {
             return Err(node.error("<instance> has more than one <emission>"));
@@ -910,7 +919,55 @@ impl Builder {
         if let Some(b) = node.children_tagged("bsdf").next() {
             instance.material = Some(self.material(b)?);
         }
-        Ok(instance)
+        Ok(vec![instance])
+    }
+
+    /// The instances of the group `group` placed by the instance `node`.
+    fn place_group(
+        &mut self,
+        node: &Node,
+        group: &Rc<Node>,
+        render_from_group: &Transform,
+        depth: usize,
+    ) -> Result<Vec<Instance>> {
+        if depth >= 64 {
+            return Err(group.error("groups nested more than 64 deep (a group containing itself?)"));
+        }
+        if node.children_tagged("emission").next().is_some() {
+            return Err(node.error("an <instance> of a group cannot have an <emission>; give it to the group's instances"));
+        }
+        let material = match node.children_tagged("bsdf").next() {
+            Some(b) => Some(self.material(b)?),
+            None => None,
+        };
+        let key = Rc::as_ptr(group);
+        let members = match self.groups.get(&key) {
+            Some(m) => m.clone(),
+            None => {
+                self.check_children(group, &["instance"])?;
+                group.check_all_used()?;
+                let mut members = Vec::new();
+                for child in group.children_tagged("instance") {
+                    members.extend(self.instance(child, depth + 1)?);
+                }
+                if members.is_empty() {
+                    return Err(group.error("<shape type=\"group\"> has no <instance>"));
+                }
+                let members = Arc::new(members);
+                self.groups.insert(key, members.clone());
+                members
+            }
+        };
+        Ok(members
+            .iter()
+            .map(|m| {
+                let mut inst =
+                    Instance::new(m.shape.clone(), m.render_from_object.then(render_from_group));
+                inst.material = m.material.clone().or_else(|| material.clone());
+                inst.emission = m.emission.clone();
+                inst
+            })
+            .collect())
     }
 
     /// `<emission type="lambertian">` with an `emission` texture (radiance).
@@ -956,6 +1013,7 @@ impl Builder {
             "cube",
             "cylinder",
             "mesh",
+            "group",
         ];
         let shape = match node.type_name.as_deref() {
             Some("sphere") => Arc::new(Shape::Sphere(Sphere)),
@@ -989,6 +1047,9 @@ impl Builder {
                         s
                     }
                 }
+            }
+            Some("group") => {
+                return Err(node.error("a group can only be placed by an <instance>"));
             }
             _ => return Err(unknown_type(node, KNOWN)),
         };
@@ -1090,6 +1151,62 @@ mod tests {
             UVec2::new(20, 10)
         );
         assert_eq!(loaded.sampler.samples_per_pixel(), 2);
+    }
+
+    /// Groups nest (two levels here), compose transforms in order (the group's own
+    /// instance transforms first, then the placing instance's), share one shape, and give
+    /// their material to members that have none.
+    #[test]
+    fn nested_groups_place_their_instances() {
+        let xml = r#"<integrator type="aov" variable="normals"><scene>
+            <camera type="perspective"><integer name="width" value="8"/><integer name="height" value="8"/></camera>
+            <bsdf type="diffuse" id="red"><texture name="albedo" type="constant" value="1,0,0"/></bsdf>
+            <shape type="group" id="pair">
+                <instance><shape type="sphere"/><transform><translate x="-1"/></transform></instance>
+                <instance><shape type="sphere"/><ref id="red"/><transform><translate x="1"/></transform></instance>
+            </shape>
+            <shape type="group" id="row">
+                <instance><ref id="pair"/><transform><translate y="0"/></transform></instance>
+                <instance><ref id="pair"/><transform><scale value="0.5"/><translate y="3"/></transform></instance>
+            </shape>
+            <instance><ref id="row"/><bsdf type="diffuse"><texture name="albedo" type="constant" value="0,0,1"/></bsdf>
+                <transform><translate z="10"/></transform></instance>
+            <instance><ref id="row"/><transform><rotate axis="0,0,1" angle="90"/><translate z="20"/></transform></instance>
+        </scene><sampler type="independent" count="1"/></integrator>"#;
+        let loaded =
+            crate::io::load_scene_str(xml, Path::new("groups.xml"), &LoadOptions::default())
+                .unwrap();
+        let inst = &loaded.scene.instances;
+        assert_eq!(inst.len(), 8);
+        let centre = |i: usize| (inst[i].bounds.min + inst[i].bounds.max) * 0.5;
+        let expect = [
+            Vec3::new(-1.0, 0.0, 10.0),
+            Vec3::new(1.0, 0.0, 10.0),
+            Vec3::new(-0.5, 3.0, 10.0),
+            Vec3::new(0.5, 3.0, 10.0),
+            Vec3::new(0.0, -1.0, 20.0),
+            Vec3::new(0.0, 1.0, 20.0),
+            Vec3::new(-3.0, -0.5, 20.0),
+            Vec3::new(-3.0, 0.5, 20.0),
+        ];
+        for (i, e) in expect.iter().enumerate() {
+            assert!((centre(i) - *e).length() < 1e-4, "instance {i}: {:?} vs {e:?}", centre(i));
+        }
+        assert!((inst[2].bounds.diagonal() - Vec3::splat(1.0)).length() < 1e-4);
+        // Each member's shape is shared by all its placements; the red member keeps red,
+        // the other takes the placing instance's blue, or none.
+        for i in 0..8 {
+            assert!(Arc::ptr_eq(&inst[i].shape, &inst[i % 2].shape));
+        }
+        assert!(!Arc::ptr_eq(&inst[0].shape, &inst[1].shape));
+        let albedo = |i: usize| match inst[i].material.as_deref() {
+            Some(Material::Diffuse(d)) => Some(d.albedo.eval(Vec2::ZERO)),
+            _ => None,
+        };
+        assert_eq!(albedo(0), Some(Vec3::new(0.0, 0.0, 1.0)));
+        assert_eq!(albedo(1), Some(Vec3::new(1.0, 0.0, 0.0)));
+        assert_eq!(albedo(4), None);
+        assert_eq!(albedo(5), Some(Vec3::new(1.0, 0.0, 0.0)));
     }
 
     #[test]
