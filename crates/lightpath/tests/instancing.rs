@@ -19,7 +19,11 @@ fn lumpy_mesh(rng: &mut Pcg32) -> MeshData {
             );
             let r = 1.0 + 0.15 * rng.next_f32();
             data.positions.push(
-                Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos()) * r,
+                Vec3::new(
+                    theta.sin() * phi.cos(),
+                    theta.sin() * phi.sin(),
+                    theta.cos(),
+                ) * r,
             );
         }
     }
@@ -127,7 +131,10 @@ fn instanced_hits_equal_flattened_hits() {
             }
         }
     }
-    assert!(hits > 5_000 && compared > hits * 9 / 10, "{hits} hits, {compared} compared");
+    assert!(
+        hits > 5_000 && compared > hits * 9 / 10,
+        "{hits} hits, {compared} compared"
+    );
 }
 
 #[test]

@@ -961,8 +961,10 @@ impl Builder {
         Ok(members
             .iter()
             .map(|m| {
-                let mut inst =
-                    Instance::new(m.shape.clone(), m.render_from_object.then(render_from_group));
+                let mut inst = Instance::new(
+                    m.shape.clone(),
+                    m.render_from_object.then(render_from_group),
+                );
                 inst.material = m.material.clone().or_else(|| material.clone());
                 inst.emission = m.emission.clone();
                 inst
@@ -1190,7 +1192,11 @@ mod tests {
             Vec3::new(-3.0, 0.5, 20.0),
         ];
         for (i, e) in expect.iter().enumerate() {
-            assert!((centre(i) - *e).length() < 1e-4, "instance {i}: {:?} vs {e:?}", centre(i));
+            assert!(
+                (centre(i) - *e).length() < 1e-4,
+                "instance {i}: {:?} vs {e:?}",
+                centre(i)
+            );
         }
         assert!((inst[2].bounds.diagonal() - Vec3::splat(1.0)).length() < 1e-4);
         // Each member's shape is shared by all its placements; the red member keeps red,

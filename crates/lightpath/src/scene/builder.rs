@@ -55,6 +55,11 @@ impl SceneBuilder {
         self.instances.len() as u32 - 1
     }
 
+    /// Gives instance `instance` a material.
+    pub fn set_material(&mut self, instance: u32, material: Arc<crate::material::Material>) {
+        self.instances[instance as usize].material = Some(material);
+    }
+
     pub fn set_camera(&mut self, camera: Camera) -> &mut Self {
         self.camera = Some(camera);
         self
