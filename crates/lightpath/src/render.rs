@@ -128,9 +128,11 @@ struct Schedule {
     single: bool,
 }
 
-/// Passes are sized to fill this fraction of the remaining time budget, leaving room
-/// for the speed to vary.
-const BUDGET_FILL: f64 = 0.9;
+/// Passes are sized to take at most this fraction of the remaining time budget at the
+/// last pass's speed: the passes near the end shrink geometrically, so a slowdown of up
+/// to 2x still ends within the budget, and a pass that overruns it anyway (and is
+/// abandoned) wastes little.
+const BUDGET_FILL: f64 = 0.5;
 
 impl Schedule {
     /// The size of the next pass after `done` samples per pixel, `elapsed` time, and a
@@ -152,7 +154,13 @@ impl Schedule {
             }
             if let Some(budget) = self.budget {
                 let remaining = budget.as_secs_f64() - elapsed.as_secs_f64();
-                let fit = (remaining * BUDGET_FILL / t).floor();
+                let mut fit = (remaining * BUDGET_FILL / t).floor();
+                if fit < 1.0 && remaining >= t {
+                    // Too little time left for the halving rule, but one more sample
+                    // per pixel is expected to fit (if it does not, the pass is
+                    // abandoned at the budget: time is never exceeded, only wasted).
+                    fit = 1.0;
+                }
                 if fit < 1.0 {
                     return 0;
                 }
@@ -291,7 +299,7 @@ impl Renderer<'_> {
         let rays = AtomicU64::new(job.base.rays);
         let abandoned = AtomicBool::new(false);
         let current: &[Vec3] = sums;
-        let results: Vec<Option<(u32, u32, Vec<Vec3>, RenderStats)>> = (0..tiles_x * tiles_y)
+        let results: Vec<Option<TileResult>> = (0..tiles_x * tiles_y)
             .into_par_iter()
             .map(|tile| {
                 let (x0, y0) = ((tile % tiles_x) * TILE_SIZE, (tile / tiles_x) * TILE_SIZE);
@@ -383,6 +391,9 @@ impl Renderer<'_> {
         Some((pixels, stats))
     }
 }
+
+/// A rendered tile: its corner, its pixels' new sums, its statistics.
+type TileResult = (u32, u32, Vec<Vec3>, RenderStats);
 
 /// One pass of a render.
 struct PassJob<'a> {
@@ -595,14 +606,15 @@ mod tests {
             done += n;
         }
         assert_eq!(sizes, vec![1, 1, 2, 4, 8, 16, 32, 36]);
-        // A budget with 1 s left at 0.1 s per spp: passes fit in 90% of it.
+        // A budget with 1 s left at 0.1 s per spp: passes fit in half of it.
         let b = Schedule {
             max_spp: u32::MAX,
             budget: Some(Duration::from_secs(3)),
             ..s
         };
         assert_eq!(b.next(0, Duration::ZERO, None), 1);
-        assert_eq!(b.next(64, Duration::from_secs(2), Some(0.1)), 9);
+        assert_eq!(b.next(64, Duration::from_secs(2), Some(0.1)), 5);
+        assert_eq!(b.next(64, Duration::from_millis(2850), Some(0.1)), 1);
         assert_eq!(b.next(64, Duration::from_millis(2950), Some(0.1)), 0);
         assert_eq!(b.next(64, Duration::from_secs(4), Some(0.1)), 0);
         // An interval of 0.25 s at 0.1 s per spp: passes of 2.
