@@ -3,10 +3,12 @@
 mod compare;
 mod completions;
 mod default_scene;
+mod duration;
 mod names;
 mod progress;
 mod render;
 mod test;
+mod tonemap;
 
 use anyhow::Result;
 use clap::{CommandFactory, Parser, Subcommand};
@@ -31,6 +33,8 @@ enum Command {
     Test(test::TestArgs),
     /// Print error metrics between two images.
     Compare(compare::CompareArgs),
+    /// Tone map a linear image (EXR) to a display image (PNG).
+    Tonemap(tonemap::TonemapArgs),
     /// Print a shell completion script to stdout.
     Completions(completions::CompletionsArgs),
     /// Print the man page (roff) to stdout.
@@ -43,6 +47,7 @@ fn main() {
         Command::Render(args) => render::run(args).map(|_| true),
         Command::Test(args) => test::run(args),
         Command::Compare(args) => compare::run(args).map(|_| true),
+        Command::Tonemap(args) => tonemap::run(args).map(|_| true),
         Command::Completions(args) => completions::completions(args, Cli::command()).map(|_| true),
         Command::Man => completions::man(Cli::command()).map(|_| true),
     };

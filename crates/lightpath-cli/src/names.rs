@@ -1,4 +1,5 @@
-//! Command-line values that are one of a list of names (`--accel`, `--sampler`): a clap value parser that rejects a typo with the nearest valid name
+//! Command-line values that are one of a list of names (`--accel`, `--sampler`,
+//! `--tonemap`): a clap value parser that rejects a typo with the nearest valid name
 //! ("did you mean ...?") and tells shell completions the names.
 
 use clap::builder::{PossibleValue, TypedValueParser};
@@ -15,6 +16,9 @@ pub const ACCELS: NameParser = NameParser {
 };
 pub const SAMPLERS: NameParser = NameParser {
     names: &["independent", "sobol"],
+};
+pub const TONEMAPS: NameParser = NameParser {
+    names: lightpath::film::Tonemap::NAMES,
 };
 
 /// The message for an unknown `value` of option `option` (e.g. `--accel`).
@@ -62,8 +66,8 @@ mod tests {
     #[test]
     fn suggestions() {
         assert_eq!(
-            unknown("--sampler", "sobl", SAMPLERS.names),
-            "unknown --sampler `sobl`; did you mean `sobol`? (known: independent, sobol)"
+            unknown("--tonemap", "agz", TONEMAPS.names),
+            "unknown --tonemap `agz`; did you mean `agx`? (known: clamp, reinhard, aces, agx)"
         );
         assert!(unknown("--accel", "bhv2", ACCELS.names).contains("did you mean `bvh2`?"));
         assert!(!unknown("--sampler", "zzzzzzzz", SAMPLERS.names).contains("did you mean"));

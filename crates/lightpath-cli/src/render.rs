@@ -1,24 +1,44 @@
-//! `lightpath render`: render a scene file (or the built-in scene) to an image.
+//! `lightpath render`: render a scene file (or the built-in scene) to an image,
+//! progressively: `--time` stops at a time budget, `--preview` rewrites a preview image
+//! as passes finish.
 
-use crate::{default_scene, progress, RenderOptions};
+use crate::tonemap::{self, ToneArgs};
+use crate::{default_scene, duration, progress, RenderOptions};
 use anyhow::{Context, Result};
+use lightpath::film::Image;
 use lightpath::io::{self, LoadedScene};
-use lightpath::render::{RenderStats, Renderer};
+use lightpath::render::{RenderControl, RenderStats, Rendered, Renderer};
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
 
 #[derive(clap::Args)]
 pub struct RenderArgs {
     /// Scene file (lightwave XML). Without it, renders the built-in default scene.
     pub scene: Option<PathBuf>,
-    /// Output image; the extension picks the format (.png or .exr).
+    /// Output image; the extension picks the format (.png, tone mapped, or .exr, linear).
     #[arg(short, long, default_value = "render.png")]
     pub output: PathBuf,
+    /// Stop after this much rendering time (e.g. 500ms, 2s, 1.5m), at the end of a pass
+    /// so every pixel has the same number of samples. Without --spp, samples are
+    /// unlimited.
+    #[arg(long, value_parser = duration::parse, value_name = "DURATION")]
+    pub time: Option<Duration>,
+    /// Rewrite this PNG (atomically, tone mapped) with the image so far as passes finish.
+    #[arg(long, value_name = "FILE.png")]
+    pub preview: Option<PathBuf>,
+    /// Minimum time between preview updates.
+    #[arg(long, value_parser = duration::parse, default_value = "5s", value_name = "DURATION")]
+    pub every: Duration,
+    #[command(flatten)]
+    pub tone: ToneArgs,
     #[command(flatten)]
     pub options: RenderOptions,
 }
 
 pub fn run(args: RenderArgs) -> Result<()> {
     args.options.init_threads()?;
+    args.tone.check()?;
     let ext = io::extension(&args.output);
     if ext != "png" && ext != "exr" {
         anyhow::bail!(
@@ -26,19 +46,38 @@ pub fn run(args: RenderArgs) -> Result<()> {
             args.output.display()
         );
     }
+    if let Some(p) = &args.preview {
+        if !tonemap::is_display(p) {
+            anyhow::bail!("{}: the preview is a display image; use .png", p.display());
+        }
+    }
+    let quiet = args.options.quiet;
     let load = args.options.load_options()?;
     let loaded = match &args.scene {
         Some(path) => io::load_scene(path, &load)?,
         None => default_scene::load(&load)?,
     };
-    let stats = render_to(&loaded, &args.output, &args.options)?;
-    if !args.options.quiet {
+
+    let interval = args.preview.as_ref().map(|_| args.every);
+    let mut live = Live::new(
+        args.preview.as_deref().map(|p| (p, args.every)),
+        &args.tone,
+        quiet,
+    );
+    let rendered = render_loaded(&loaded, &args.options, args.time, interval, &mut live)?;
+
+    tonemap::write(&args.output, &rendered.image, &args.tone)?;
+
+    let stats = rendered.stats;
+    if !quiet {
         eprintln!(
-            "wrote {} ({:.2} s, {:.2} M samples/s, {:.2} M rays/s)",
+            "wrote {} ({} spp in {} passes, {:.2} s, {}samples/s, {}rays/s)",
             args.output.display(),
+            rendered.spp,
+            rendered.passes,
             stats.seconds,
-            stats.samples as f64 / stats.seconds.max(1e-9) / 1e6,
-            stats.rays as f64 / stats.seconds.max(1e-9) / 1e6
+            rate(stats.samples, stats.seconds),
+            rate(stats.rays, stats.seconds),
         );
         if stats.non_finite_samples > 0 {
             eprintln!(
@@ -50,22 +89,63 @@ pub fn run(args: RenderArgs) -> Result<()> {
     Ok(())
 }
 
-/// Renders a loaded scene and writes it to `output` (atomically).
-pub fn render_to(
-    loaded: &LoadedScene,
-    output: &Path,
-    options: &RenderOptions,
-) -> Result<RenderStats> {
-    let (image, stats) = render_image(loaded, options)?;
-    io::image::write_image(output, &image)
-        .with_context(|| format!("writing {}", output.display()))?;
-    Ok(stats)
+/// `1.23 M` per second, for the summary line.
+fn rate(n: u64, seconds: f64) -> String {
+    format!("{} ", progress::si(n as f64 / seconds.max(1e-9)))
 }
 
-pub fn render_image(
+/// What happens between passes: previews.
+pub struct Live<'a> {
+    pub preview: Option<(&'a Path, Duration)>,
+    pub tone: &'a ToneArgs,
+    pub last_preview: Instant,
+    pub quiet: bool,
+    /// Samples per pixel of the image last shown in the preview.
+    preview_spp: u32,
+}
+
+impl<'a> Live<'a> {
+    pub fn new(preview: Option<(&'a Path, Duration)>, tone: &'a ToneArgs, quiet: bool) -> Live<'a> {
+        Live {
+            preview,
+            tone,
+            last_preview: Instant::now(),
+            quiet,
+            preview_spp: 0,
+        }
+    }
+
+    /// After a pass: warnings to print, if any. `force`: show this image even if the
+    /// preview is not due (the final image).
+    fn show(&mut self, image: &Image, spp: u32, force: bool) -> Vec<String> {
+        let mut warnings = Vec::new();
+        if let Some((path, every)) = self.preview {
+            let due = self.last_preview.elapsed() >= every || force;
+            if due && self.preview_spp != spp {
+                self.last_preview = Instant::now();
+                self.preview_spp = spp;
+                if let Err(e) = tonemap::write(path, image, self.tone) {
+                    warnings.push(format!("preview not written: {e:#}; no more previews"));
+                    self.preview = None;
+                }
+            }
+        }
+        if self.quiet {
+            warnings.clear();
+        }
+        warnings
+    }
+}
+
+/// Renders a loaded scene progressively: to `--spp` (or the scene's count), or, with a
+/// time budget, until it is spent (unlimited samples without `--spp`).
+pub fn render_loaded(
     loaded: &LoadedScene,
     options: &RenderOptions,
-) -> Result<(lightpath::film::Image, RenderStats)> {
+    time: Option<Duration>,
+    pass_interval: Option<Duration>,
+    live: &mut Live,
+) -> Result<Rendered> {
     let camera = loaded
         .scene
         .camera
@@ -85,7 +165,45 @@ pub fn render_image(
         integrator: &integrator,
         sampler: &sampler,
     };
-    let result = renderer.render(&progress::callback(&bar));
+    let report = progress::callback(&bar);
+    let control = RenderControl {
+        max_spp: match (options.spp, time) {
+            (Some(n), _) => Some(n),
+            (None, Some(_)) => None,
+            (None, None) => Some(sampler.samples_per_pixel().max(1)),
+        },
+        time_budget: time,
+        pass_interval,
+        progress: Some(&report),
+    };
+    let result = renderer.render_progressive(&control, &mut |pass| {
+        for w in live.show(pass.image, pass.spp, pass.last) {
+            bar.suspend(|| eprintln!("warning: {w}"));
+        }
+        ControlFlow::Continue(())
+    });
     bar.finish_and_clear();
-    Ok(result?)
+    let rendered = result?;
+    // The final image, if the last pass was not shown (a pass abandoned at the time
+    // budget, or a preview that was not due).
+    for w in live.show(&rendered.image, rendered.spp, true) {
+        eprintln!("warning: {w}");
+    }
+    Ok(rendered)
+}
+
+/// Renders a loaded scene to the requested samples per pixel.
+pub fn render_image(loaded: &LoadedScene, options: &RenderOptions) -> Result<(Image, RenderStats)> {
+    let tone = ToneArgs {
+        tonemap: "clamp".into(),
+        exposure: 0.0,
+    };
+    let out = render_loaded(
+        loaded,
+        options,
+        None,
+        None,
+        &mut Live::new(None, &tone, true),
+    )?;
+    Ok((out.image, out.stats))
 }
