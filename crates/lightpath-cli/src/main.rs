@@ -4,9 +4,13 @@ mod compare;
 mod completions;
 mod default_scene;
 mod duration;
+mod fsutil;
+mod info;
 mod names;
 mod progress;
 mod render;
+mod stats;
+mod summary;
 mod test;
 mod tonemap;
 
@@ -33,6 +37,9 @@ enum Command {
     Test(test::TestArgs),
     /// Print error metrics between two images.
     Compare(compare::CompareArgs),
+    /// Describe a scene (instances, shapes, triangles, lights, materials, camera,
+    /// integrator, sampler, bounds, accelerator memory) without rendering it.
+    Info(info::InfoArgs),
     /// Tone map a linear image (EXR) to a display image (PNG).
     Tonemap(tonemap::TonemapArgs),
     /// Print a shell completion script to stdout.
@@ -47,6 +54,7 @@ fn main() {
         Command::Render(args) => render::run(args).map(|_| true),
         Command::Test(args) => test::run(args),
         Command::Compare(args) => compare::run(args).map(|_| true),
+        Command::Info(args) => info::run(args).map(|_| true),
         Command::Tonemap(args) => tonemap::run(args).map(|_| true),
         Command::Completions(args) => completions::completions(args, Cli::command()).map(|_| true),
         Command::Man => completions::man(Cli::command()).map(|_| true),

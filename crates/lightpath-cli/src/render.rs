@@ -2,10 +2,13 @@
 //! progressively: `--time` stops at a time budget, `--preview` rewrites a preview image
 //! as passes finish.
 
+use crate::stats::Report;
+use crate::summary::{by_kind, bytes, SceneSummary};
 use crate::tonemap::{self, ToneArgs};
 use crate::{default_scene, duration, progress, RenderOptions};
 use anyhow::{Context, Result};
 use lightpath::film::Image;
+use lightpath::integrator::Integrator;
 use lightpath::io::{self, LoadedScene};
 use lightpath::render::{RenderControl, RenderStats, Rendered, Renderer};
 use std::ops::ControlFlow;
@@ -30,6 +33,15 @@ pub struct RenderArgs {
     /// Minimum time between preview updates.
     #[arg(long, value_parser = duration::parse, default_value = "5s", value_name = "DURATION")]
     pub every: Duration,
+    /// Print render statistics (times, samples, rays, traversal work) to stdout.
+    #[arg(long)]
+    pub stats: bool,
+    /// Write render statistics as JSON to FILE (atomically).
+    #[arg(long, value_name = "FILE")]
+    pub stats_json: Option<PathBuf>,
+    /// Log what was loaded: instances, meshes, triangles, lights, accelerator memory.
+    #[arg(short, long)]
+    pub verbose: bool,
     #[command(flatten)]
     pub tone: ToneArgs,
     #[command(flatten)]
@@ -53,10 +65,21 @@ pub fn run(args: RenderArgs) -> Result<()> {
     }
     let quiet = args.options.quiet;
     let load = args.options.load_options()?;
+    let start = Instant::now();
     let loaded = match &args.scene {
         Some(path) => io::load_scene(path, &load)?,
         None => default_scene::load(&load)?,
     };
+    let load_seconds = start.elapsed().as_secs_f64();
+    let summary = SceneSummary::of(&loaded);
+    if args.verbose && !quiet {
+        eprintln!("{}", loaded_log(&loaded, &summary, load_seconds));
+    }
+    if !quiet && summary.is_dark() && needs_light(&loaded.integrator) {
+        eprintln!(
+            "warning: the scene has no lights and no emitting surfaces; the image will be black"
+        );
+    }
 
     let interval = args.preview.as_ref().map(|_| args.every);
     let mut live = Live::new(
@@ -66,7 +89,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
     );
     let rendered = render_loaded(&loaded, &args.options, args.time, interval, &mut live)?;
 
+    let write_start = Instant::now();
     tonemap::write(&args.output, &rendered.image, &args.tone)?;
+    let write_seconds = write_start.elapsed().as_secs_f64();
 
     let stats = rendered.stats;
     if !quiet {
@@ -86,12 +111,63 @@ pub fn run(args: RenderArgs) -> Result<()> {
             );
         }
     }
+    if args.stats || args.stats_json.is_some() {
+        let report = Report {
+            load_seconds,
+            render_seconds: stats.seconds,
+            write_seconds,
+            stats,
+            accel_bytes: summary.accel_bytes,
+            width: rendered.image.width,
+            height: rendered.image.height,
+            spp: rendered.spp,
+            passes: rendered.passes,
+        };
+        if args.stats {
+            println!("{}", report.table());
+        }
+        if let Some(path) = &args.stats_json {
+            report.write_json(path)?;
+        }
+    }
     Ok(())
 }
 
 /// `1.23 M` per second, for the summary line.
 fn rate(n: u64, seconds: f64) -> String {
     format!("{} ", progress::si(n as f64 / seconds.max(1e-9)))
+}
+
+/// Integrators whose images come from light (the others show geometry).
+fn needs_light(integrator: &Integrator) -> bool {
+    matches!(
+        integrator,
+        Integrator::Direct(_) | Integrator::PathTracer(_)
+    )
+}
+
+/// The `--verbose` log of what was loaded.
+fn loaded_log(loaded: &LoadedScene, s: &SceneSummary, seconds: f64) -> String {
+    let mut lines = vec![format!(
+        "loaded {} in {seconds:.3} s (incl. accelerator build)",
+        loaded.path.display()
+    )];
+    lines.push(format!("  instances   {}", by_kind(&s.shapes)));
+    lines.push(format!(
+        "  meshes      {} distinct, {} triangles ({} counting instances)",
+        s.meshes, s.triangles, s.instanced_triangles
+    ));
+    lines.push(format!("  lights      {}", by_kind(&s.lights)));
+    lines.push(format!("  materials   {}", s.material_count()));
+    lines.push(format!("  accelerator {}", bytes(s.accel_bytes)));
+    if let Some((kind, w, h)) = &s.camera {
+        lines.push(format!("  camera      {kind}, {w}x{h}"));
+    }
+    lines.push(format!(
+        "  integrator  {}, sampler {} ({} spp in the scene)",
+        s.integrator, s.sampler, s.spp
+    ));
+    lines.join("\n")
 }
 
 /// What happens between passes: previews.
