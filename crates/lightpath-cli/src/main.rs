@@ -12,6 +12,7 @@ mod render;
 mod stats;
 mod summary;
 mod test;
+mod tev;
 mod tonemap;
 
 use anyhow::Result;

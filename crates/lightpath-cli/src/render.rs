@@ -1,9 +1,10 @@
 //! `lightpath render`: render a scene file (or the built-in scene) to an image,
 //! progressively: `--time` stops at a time budget, `--preview` rewrites a preview image
-//! as passes finish.
+//! as passes finish, `--tev` streams the passes to the tev viewer.
 
 use crate::stats::Report;
 use crate::summary::{by_kind, bytes, SceneSummary};
+use crate::tev::Tev;
 use crate::tonemap::{self, ToneArgs};
 use crate::{default_scene, duration, progress, RenderOptions};
 use anyhow::{Context, Result};
@@ -33,6 +34,10 @@ pub struct RenderArgs {
     /// Minimum time between preview updates.
     #[arg(long, value_parser = duration::parse, default_value = "5s", value_name = "DURATION")]
     pub every: Duration,
+    /// Stream the image to the tev viewer at HOST:PORT as it renders (tev listens on
+    /// 127.0.0.1:14158 by default). A missing viewer is a warning.
+    #[arg(long, value_name = "HOST:PORT")]
+    pub tev: Option<String>,
     /// Print render statistics (times, samples, rays, traversal work) to stdout.
     #[arg(long)]
     pub stats: bool,
@@ -47,6 +52,9 @@ pub struct RenderArgs {
     #[command(flatten)]
     pub options: RenderOptions,
 }
+
+/// Time between passes when streaming to tev without a preview.
+const TEV_INTERVAL: Duration = Duration::from_secs(1);
 
 pub fn run(args: RenderArgs) -> Result<()> {
     args.options.init_threads()?;
@@ -81,10 +89,29 @@ pub fn run(args: RenderArgs) -> Result<()> {
         );
     }
 
-    let interval = args.preview.as_ref().map(|_| args.every);
+    let mut tev = None;
+    if let Some(address) = &args.tev {
+        let name = args
+            .output
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "lightpath".into());
+        let (client, warning) = Tev::connect(address, &name);
+        if let (Some(w), false) = (warning, quiet) {
+            eprintln!("warning: {w}");
+        }
+        tev = Some(client).filter(Tev::connected);
+    }
+    let interval = match (&args.preview, &tev) {
+        (Some(_), Some(_)) => Some(args.every.min(TEV_INTERVAL)),
+        (Some(_), None) => Some(args.every),
+        (None, Some(_)) => Some(TEV_INTERVAL),
+        (None, None) => None,
+    };
     let mut live = Live::new(
         args.preview.as_deref().map(|p| (p, args.every)),
         &args.tone,
+        tev.as_mut(),
         quiet,
     );
     let rendered = render_loaded(&loaded, &args.options, args.time, interval, &mut live)?;
@@ -170,24 +197,33 @@ fn loaded_log(loaded: &LoadedScene, s: &SceneSummary, seconds: f64) -> String {
     lines.join("\n")
 }
 
-/// What happens between passes: previews.
+/// What happens between passes: previews and tev updates.
 pub struct Live<'a> {
     pub preview: Option<(&'a Path, Duration)>,
     pub tone: &'a ToneArgs,
+    pub tev: Option<&'a mut Tev>,
     pub last_preview: Instant,
     pub quiet: bool,
-    /// Samples per pixel of the image last shown in the preview.
+    /// Samples per pixel of the image last shown in the preview and in tev.
     preview_spp: u32,
+    tev_spp: u32,
 }
 
 impl<'a> Live<'a> {
-    pub fn new(preview: Option<(&'a Path, Duration)>, tone: &'a ToneArgs, quiet: bool) -> Live<'a> {
+    pub fn new(
+        preview: Option<(&'a Path, Duration)>,
+        tone: &'a ToneArgs,
+        tev: Option<&'a mut Tev>,
+        quiet: bool,
+    ) -> Live<'a> {
         Live {
             preview,
             tone,
+            tev,
             last_preview: Instant::now(),
             quiet,
             preview_spp: 0,
+            tev_spp: 0,
         }
     }
 
@@ -195,6 +231,15 @@ impl<'a> Live<'a> {
     /// preview is not due (the final image).
     fn show(&mut self, image: &Image, spp: u32, force: bool) -> Vec<String> {
         let mut warnings = Vec::new();
+        if let Some(tev) = self.tev.as_deref_mut() {
+            if self.tev_spp != spp {
+                self.tev_spp = spp;
+                warnings.extend(tev.send(image));
+            }
+            if !tev.connected() {
+                self.tev = None;
+            }
+        }
         if let Some((path, every)) = self.preview {
             let due = self.last_preview.elapsed() >= every || force;
             if due && self.preview_spp != spp {
@@ -279,7 +324,7 @@ pub fn render_image(loaded: &LoadedScene, options: &RenderOptions) -> Result<(Im
         options,
         None,
         None,
-        &mut Live::new(None, &tone, true),
+        &mut Live::new(None, &tone, None, true),
     )?;
     Ok((out.image, out.stats))
 }
