@@ -20,7 +20,7 @@ pub fn bar(name: &str, quiet: bool) -> ProgressBar {
     let bar = ProgressBar::with_draw_target(Some(STEPS), ProgressDrawTarget::stderr());
     bar.set_style(
         ProgressStyle::with_template(
-            "{prefix} [{bar:30.cyan/blue}] {percent:>3}% {elapsed_precise} ETA {eta} {msg}",
+            "{prefix} [{bar:16.cyan/blue}] {percent:>3}% {elapsed} ETA {eta} {wide_msg}",
         )
         .expect("valid template")
         .progress_chars("=> "),
@@ -42,14 +42,32 @@ pub fn si(v: f64) -> String {
     }
 }
 
-/// The bar's message for a progress report.
+/// `12M` for 12.3e6: short, for the bar.
+fn short(v: f64) -> String {
+    let (v, unit) = if v >= 1e9 {
+        (v / 1e9, "G")
+    } else if v >= 1e6 {
+        (v / 1e6, "M")
+    } else if v >= 1e3 {
+        (v / 1e3, "k")
+    } else {
+        (v, "")
+    };
+    if v < 10.0 && !unit.is_empty() {
+        format!("{v:.1}{unit}")
+    } else {
+        format!("{v:.0}{unit}")
+    }
+}
+
+/// The bar's message for a progress report (short enough for an 80-column terminal).
 pub fn message(p: &Progress) -> String {
     let s = p.elapsed.as_secs_f64().max(1e-9);
     format!(
-        "{} spp | {} samples/s | {} rays/s",
+        "{} spp, {} samples/s, {} rays/s",
         p.spp,
-        si(p.samples as f64 / s),
-        si(p.rays as f64 / s)
+        short(p.samples as f64 / s),
+        short(p.rays as f64 / s)
     )
 }
 
@@ -80,6 +98,8 @@ mod tests {
             rays: 6_000_000,
             elapsed: std::time::Duration::from_secs(2),
         };
-        assert_eq!(message(&p), "8 spp | 1.00 M samples/s | 3.00 M rays/s");
+        assert_eq!(message(&p), "8 spp, 1.0M samples/s, 3.0M rays/s");
+        assert_eq!(short(123_456_789.0), "123M");
+        assert_eq!(short(950.0), "950");
     }
 }
