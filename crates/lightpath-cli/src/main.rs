@@ -1,13 +1,22 @@
 //! `lightpath`: render scenes, run the course's test scenes, compare images.
 
 mod compare;
+mod completions;
 mod default_scene;
+mod duration;
+mod fsutil;
+mod info;
+mod names;
 mod progress;
 mod render;
+mod stats;
+mod summary;
 mod test;
+mod tev;
+mod tonemap;
 
 use anyhow::Result;
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, Parser, Subcommand};
 
 #[derive(Parser)]
 #[command(
@@ -29,6 +38,15 @@ enum Command {
     Test(test::TestArgs),
     /// Print error metrics between two images.
     Compare(compare::CompareArgs),
+    /// Describe a scene (instances, shapes, triangles, lights, materials, camera,
+    /// integrator, sampler, bounds, accelerator memory) without rendering it.
+    Info(info::InfoArgs),
+    /// Tone map a linear image (EXR) to a display image (PNG).
+    Tonemap(tonemap::TonemapArgs),
+    /// Print a shell completion script to stdout.
+    Completions(completions::CompletionsArgs),
+    /// Print the man page (roff) to stdout.
+    Man,
 }
 
 fn main() {
@@ -37,6 +55,10 @@ fn main() {
         Command::Render(args) => render::run(args).map(|_| true),
         Command::Test(args) => test::run(args),
         Command::Compare(args) => compare::run(args).map(|_| true),
+        Command::Info(args) => info::run(args).map(|_| true),
+        Command::Tonemap(args) => tonemap::run(args).map(|_| true),
+        Command::Completions(args) => completions::completions(args, Cli::command()).map(|_| true),
+        Command::Man => completions::man(Cli::command()).map(|_| true),
     };
     match result {
         Ok(true) => {}
@@ -64,10 +86,10 @@ pub struct RenderOptions {
     pub threads: Option<usize>,
     /// Acceleration structure: list, bvh2, bvh-course (default: the scene dialect's;
     /// lightwave scenes use bvh-course, the course's BVH).
-    #[arg(long)]
+    #[arg(long, value_parser = names::ACCELS, value_name = "KIND")]
     pub accel: Option<String>,
     /// Sampler: independent or sobol (default: the scene's).
-    #[arg(long)]
+    #[arg(long, value_parser = names::SAMPLERS, value_name = "KIND")]
     pub sampler: Option<String>,
     /// Clamp each path's contribution to this value per channel (biased; off by default).
     #[arg(long)]
@@ -88,10 +110,11 @@ impl RenderOptions {
         let accel = match &self.accel {
             None => None,
             Some(name) => Some(lightpath::accel::AccelKind::from_name(name).ok_or_else(|| {
-                anyhow::anyhow!(
-                    "unknown --accel `{name}`; known: {}",
-                    lightpath::accel::AccelKind::NAMES.join(", ")
-                )
+                anyhow::anyhow!(names::unknown(
+                    "--accel",
+                    name,
+                    lightpath::accel::AccelKind::NAMES
+                ))
             })?),
         };
         let mut defines = Vec::new();
@@ -134,7 +157,7 @@ impl RenderOptions {
         }
         if let Some(kind) = &self.sampler {
             s = s.with_kind(kind).ok_or_else(|| {
-                anyhow::anyhow!("unknown --sampler `{kind}`; known: independent, sobol")
+                anyhow::anyhow!(names::unknown("--sampler", kind, names::SAMPLERS.names))
             })?;
         }
         Ok(s)

@@ -1,24 +1,64 @@
-//! `lightpath render`: render a scene file (or the built-in scene) to an image.
+//! `lightpath render`: render a scene file (or the built-in scene) to an image,
+//! progressively: `--time` stops at a time budget, `--preview` rewrites a preview image
+//! as passes finish, `--tev` streams the passes to the tev viewer.
 
-use crate::{default_scene, progress, RenderOptions};
+use crate::stats::Report;
+use crate::summary::{by_kind, bytes, SceneSummary};
+use crate::tev::Tev;
+use crate::tonemap::{self, ToneArgs};
+use crate::{default_scene, duration, progress, RenderOptions};
 use anyhow::{Context, Result};
+use lightpath::film::Image;
+use lightpath::integrator::Integrator;
 use lightpath::io::{self, LoadedScene};
-use lightpath::render::{RenderStats, Renderer};
+use lightpath::render::{RenderControl, RenderStats, Rendered, Renderer};
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
 
 #[derive(clap::Args)]
 pub struct RenderArgs {
     /// Scene file (lightwave XML). Without it, renders the built-in default scene.
     pub scene: Option<PathBuf>,
-    /// Output image; the extension picks the format (.png or .exr).
+    /// Output image; the extension picks the format (.png, tone mapped, or .exr, linear).
     #[arg(short, long, default_value = "render.png")]
     pub output: PathBuf,
+    /// Stop after this much rendering time (e.g. 500ms, 2s, 1.5m), at the end of a pass
+    /// so every pixel has the same number of samples. Without --spp, samples are
+    /// unlimited.
+    #[arg(long, value_parser = duration::parse, value_name = "DURATION")]
+    pub time: Option<Duration>,
+    /// Rewrite this PNG (atomically, tone mapped) with the image so far as passes finish.
+    #[arg(long, value_name = "FILE.png")]
+    pub preview: Option<PathBuf>,
+    /// Minimum time between preview updates.
+    #[arg(long, value_parser = duration::parse, default_value = "5s", value_name = "DURATION")]
+    pub every: Duration,
+    /// Stream the image to the tev viewer at HOST:PORT as it renders (tev listens on
+    /// 127.0.0.1:14158 by default). A missing viewer is a warning.
+    #[arg(long, value_name = "HOST:PORT")]
+    pub tev: Option<String>,
+    /// Print render statistics (times, samples, rays, traversal work) to stdout.
+    #[arg(long)]
+    pub stats: bool,
+    /// Write render statistics as JSON to FILE (atomically).
+    #[arg(long, value_name = "FILE")]
+    pub stats_json: Option<PathBuf>,
+    /// Log what was loaded: instances, meshes, triangles, lights, accelerator memory.
+    #[arg(short, long)]
+    pub verbose: bool,
+    #[command(flatten)]
+    pub tone: ToneArgs,
     #[command(flatten)]
     pub options: RenderOptions,
 }
 
+/// Time between passes when streaming to tev without a preview.
+const TEV_INTERVAL: Duration = Duration::from_secs(1);
+
 pub fn run(args: RenderArgs) -> Result<()> {
     args.options.init_threads()?;
+    args.tone.check()?;
     let ext = io::extension(&args.output);
     if ext != "png" && ext != "exr" {
         anyhow::bail!(
@@ -26,19 +66,70 @@ pub fn run(args: RenderArgs) -> Result<()> {
             args.output.display()
         );
     }
+    if let Some(p) = &args.preview {
+        if !tonemap::is_display(p) {
+            anyhow::bail!("{}: the preview is a display image; use .png", p.display());
+        }
+    }
+    let quiet = args.options.quiet;
     let load = args.options.load_options()?;
+    let start = Instant::now();
     let loaded = match &args.scene {
         Some(path) => io::load_scene(path, &load)?,
         None => default_scene::load(&load)?,
     };
-    let stats = render_to(&loaded, &args.output, &args.options)?;
-    if !args.options.quiet {
+    let load_seconds = start.elapsed().as_secs_f64();
+    let summary = SceneSummary::of(&loaded);
+    if args.verbose && !quiet {
+        eprintln!("{}", loaded_log(&loaded, &summary, load_seconds));
+    }
+    if !quiet && summary.is_dark() && needs_light(&loaded.integrator) {
         eprintln!(
-            "wrote {} ({:.2} s, {:.2} M samples/s, {:.2} M rays/s)",
+            "warning: the scene has no lights and no emitting surfaces; the image will be black"
+        );
+    }
+
+    let mut tev = None;
+    if let Some(address) = &args.tev {
+        let name = args
+            .output
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "lightpath".into());
+        let (client, warning) = Tev::connect(address, &name);
+        if let (Some(w), false) = (warning, quiet) {
+            eprintln!("warning: {w}");
+        }
+        tev = Some(client).filter(Tev::connected);
+    }
+    let interval = match (&args.preview, &tev) {
+        (Some(_), Some(_)) => Some(args.every.min(TEV_INTERVAL)),
+        (Some(_), None) => Some(args.every),
+        (None, Some(_)) => Some(TEV_INTERVAL),
+        (None, None) => None,
+    };
+    let mut live = Live::new(
+        args.preview.as_deref().map(|p| (p, args.every)),
+        &args.tone,
+        tev.as_mut(),
+        quiet,
+    );
+    let rendered = render_loaded(&loaded, &args.options, args.time, interval, &mut live)?;
+
+    let write_start = Instant::now();
+    tonemap::write(&args.output, &rendered.image, &args.tone)?;
+    let write_seconds = write_start.elapsed().as_secs_f64();
+
+    let stats = rendered.stats;
+    if !quiet {
+        eprintln!(
+            "wrote {} ({} spp in {} passes, {:.2} s, {}samples/s, {}rays/s)",
             args.output.display(),
+            rendered.spp,
+            rendered.passes,
             stats.seconds,
-            stats.samples as f64 / stats.seconds.max(1e-9) / 1e6,
-            stats.rays as f64 / stats.seconds.max(1e-9) / 1e6
+            rate(stats.samples, stats.seconds),
+            rate(stats.rays, stats.seconds),
         );
         if stats.non_finite_samples > 0 {
             eprintln!(
@@ -47,25 +138,135 @@ pub fn run(args: RenderArgs) -> Result<()> {
             );
         }
     }
+    if args.stats || args.stats_json.is_some() {
+        let report = Report {
+            load_seconds,
+            render_seconds: stats.seconds,
+            write_seconds,
+            stats,
+            accel_bytes: summary.accel_bytes,
+            width: rendered.image.width,
+            height: rendered.image.height,
+            spp: rendered.spp,
+            passes: rendered.passes,
+        };
+        if args.stats {
+            println!("{}", report.table());
+        }
+        if let Some(path) = &args.stats_json {
+            report.write_json(path)?;
+        }
+    }
     Ok(())
 }
 
-/// Renders a loaded scene and writes it to `output` (atomically).
-pub fn render_to(
-    loaded: &LoadedScene,
-    output: &Path,
-    options: &RenderOptions,
-) -> Result<RenderStats> {
-    let (image, stats) = render_image(loaded, options)?;
-    io::image::write_image(output, &image)
-        .with_context(|| format!("writing {}", output.display()))?;
-    Ok(stats)
+/// `1.23 M` per second, for the summary line.
+fn rate(n: u64, seconds: f64) -> String {
+    format!("{} ", progress::si(n as f64 / seconds.max(1e-9)))
 }
 
-pub fn render_image(
+/// Integrators whose images come from light (the others show geometry).
+fn needs_light(integrator: &Integrator) -> bool {
+    matches!(
+        integrator,
+        Integrator::Direct(_) | Integrator::PathTracer(_)
+    )
+}
+
+/// The `--verbose` log of what was loaded.
+fn loaded_log(loaded: &LoadedScene, s: &SceneSummary, seconds: f64) -> String {
+    let mut lines = vec![format!(
+        "loaded {} in {seconds:.3} s (incl. accelerator build)",
+        loaded.path.display()
+    )];
+    lines.push(format!("  instances   {}", by_kind(&s.shapes)));
+    lines.push(format!(
+        "  meshes      {} distinct, {} triangles ({} counting instances)",
+        s.meshes, s.triangles, s.instanced_triangles
+    ));
+    lines.push(format!("  lights      {}", by_kind(&s.lights)));
+    lines.push(format!("  materials   {}", s.material_count()));
+    lines.push(format!("  accelerator {}", bytes(s.accel_bytes)));
+    if let Some((kind, w, h)) = &s.camera {
+        lines.push(format!("  camera      {kind}, {w}x{h}"));
+    }
+    lines.push(format!(
+        "  integrator  {}, sampler {} ({} spp in the scene)",
+        s.integrator, s.sampler, s.spp
+    ));
+    lines.join("\n")
+}
+
+/// What happens between passes: previews and tev updates.
+pub struct Live<'a> {
+    pub preview: Option<(&'a Path, Duration)>,
+    pub tone: &'a ToneArgs,
+    pub tev: Option<&'a mut Tev>,
+    pub last_preview: Instant,
+    pub quiet: bool,
+    /// Samples per pixel of the image last shown in the preview and in tev.
+    preview_spp: u32,
+    tev_spp: u32,
+}
+
+impl<'a> Live<'a> {
+    pub fn new(
+        preview: Option<(&'a Path, Duration)>,
+        tone: &'a ToneArgs,
+        tev: Option<&'a mut Tev>,
+        quiet: bool,
+    ) -> Live<'a> {
+        Live {
+            preview,
+            tone,
+            tev,
+            last_preview: Instant::now(),
+            quiet,
+            preview_spp: 0,
+            tev_spp: 0,
+        }
+    }
+
+    /// After a pass: warnings to print, if any. `force`: show this image even if the
+    /// preview is not due (the final image).
+    fn show(&mut self, image: &Image, spp: u32, force: bool) -> Vec<String> {
+        let mut warnings = Vec::new();
+        if let Some(tev) = self.tev.as_deref_mut() {
+            if self.tev_spp != spp {
+                self.tev_spp = spp;
+                warnings.extend(tev.send(image));
+            }
+            if !tev.connected() {
+                self.tev = None;
+            }
+        }
+        if let Some((path, every)) = self.preview {
+            let due = self.last_preview.elapsed() >= every || force;
+            if due && self.preview_spp != spp {
+                self.last_preview = Instant::now();
+                self.preview_spp = spp;
+                if let Err(e) = tonemap::write(path, image, self.tone) {
+                    warnings.push(format!("preview not written: {e:#}; no more previews"));
+                    self.preview = None;
+                }
+            }
+        }
+        if self.quiet {
+            warnings.clear();
+        }
+        warnings
+    }
+}
+
+/// Renders a loaded scene progressively: to `--spp` (or the scene's count), or, with a
+/// time budget, until it is spent (unlimited samples without `--spp`).
+pub fn render_loaded(
     loaded: &LoadedScene,
     options: &RenderOptions,
-) -> Result<(lightpath::film::Image, RenderStats)> {
+    time: Option<Duration>,
+    pass_interval: Option<Duration>,
+    live: &mut Live,
+) -> Result<Rendered> {
     let camera = loaded
         .scene
         .camera
@@ -85,7 +286,45 @@ pub fn render_image(
         integrator: &integrator,
         sampler: &sampler,
     };
-    let result = renderer.render(&progress::callback(&bar));
+    let report = progress::callback(&bar);
+    let control = RenderControl {
+        max_spp: match (options.spp, time) {
+            (Some(n), _) => Some(n),
+            (None, Some(_)) => None,
+            (None, None) => Some(sampler.samples_per_pixel().max(1)),
+        },
+        time_budget: time,
+        pass_interval,
+        progress: Some(&report),
+    };
+    let result = renderer.render_progressive(&control, &mut |pass| {
+        for w in live.show(pass.image, pass.spp, pass.last) {
+            bar.suspend(|| eprintln!("warning: {w}"));
+        }
+        ControlFlow::Continue(())
+    });
     bar.finish_and_clear();
-    Ok(result?)
+    let rendered = result?;
+    // The final image, if the last pass was not shown (a pass abandoned at the time
+    // budget, or a preview that was not due).
+    for w in live.show(&rendered.image, rendered.spp, true) {
+        eprintln!("warning: {w}");
+    }
+    Ok(rendered)
+}
+
+/// Renders a loaded scene to the requested samples per pixel.
+pub fn render_image(loaded: &LoadedScene, options: &RenderOptions) -> Result<(Image, RenderStats)> {
+    let tone = ToneArgs {
+        tonemap: "clamp".into(),
+        exposure: 0.0,
+    };
+    let out = render_loaded(
+        loaded,
+        options,
+        None,
+        None,
+        &mut Live::new(None, &tone, None, true),
+    )?;
+    Ok((out.image, out.stats))
 }

@@ -1,8 +1,10 @@
 //! The film: where samples are averaged into pixels, and the images it develops.
 
 mod image;
+mod tonemap;
 
 pub use image::Image;
+pub use tonemap::{exposure_scale, Tonemap};
 
 use glam::Vec3;
 
