@@ -145,6 +145,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
             write_seconds,
             stats,
             accel_bytes: summary.accel_bytes,
+            accel: loaded.scene.accel_report(),
             width: rendered.image.width,
             height: rendered.image.height,
             spp: rendered.spp,

@@ -17,6 +17,8 @@
 //! | `prims_tested`       | primitives tested for intersection                           |
 //! | `non_finite_samples` | NaN or infinite samples, dropped                             |
 //! | `accel_bytes`        | memory of the top-level and all mesh accelerators            |
+//! | `tlas`               | top level: `instances`, `bytes`, `build_seconds`             |
+//! | `blas`               | bottom level (distinct meshes): `count`, `triangles`, `bytes`, `build_seconds` |
 //! | `width`, `height`    | image size in pixels                                         |
 //! | `spp`                | samples per pixel of the image                               |
 //! | `passes`             | progressive passes that went into the image                  |
@@ -35,6 +37,7 @@ pub struct Report {
     pub write_seconds: f64,
     pub stats: RenderStats,
     pub accel_bytes: usize,
+    pub accel: lightpath::scene::AccelReport,
     pub width: u32,
     pub height: u32,
     pub spp: u32,
@@ -67,6 +70,17 @@ impl Report {
             "prims_tested": s.prims_tested,
             "non_finite_samples": s.non_finite_samples,
             "accel_bytes": self.accel_bytes,
+            "tlas": {
+                "instances": self.accel.tlas_instances,
+                "bytes": self.accel.tlas_bytes,
+                "build_seconds": self.accel.tlas_build_seconds,
+            },
+            "blas": {
+                "count": self.accel.blas_count,
+                "triangles": self.accel.blas_triangles,
+                "bytes": self.accel.blas_bytes,
+                "build_seconds": self.accel.blas_build_seconds,
+            },
             "width": self.width,
             "height": self.height,
             "spp": self.spp,
@@ -114,6 +128,19 @@ impl Report {
                 "accelerator memory  {:>10}",
                 crate::summary::bytes(self.accel_bytes)
             ),
+            format!(
+                "TLAS                {:>10} instances, {}, built in {:.3} s",
+                self.accel.tlas_instances,
+                crate::summary::bytes(self.accel.tlas_bytes),
+                self.accel.tlas_build_seconds
+            ),
+            format!(
+                "BLAS                {:>10} meshes, {} triangles, {}, built in {:.3} s",
+                self.accel.blas_count,
+                self.accel.blas_triangles,
+                crate::summary::bytes(self.accel.blas_bytes),
+                self.accel.blas_build_seconds
+            ),
         ]
         .join("\n")
     }
@@ -135,6 +162,7 @@ mod tests {
                 ..Default::default()
             },
             accel_bytes: 64,
+            accel: Default::default(),
             width: 10,
             height: 10,
             spp: 1,

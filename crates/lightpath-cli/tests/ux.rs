@@ -300,6 +300,21 @@ fn stats_json_has_the_documented_keys() {
     ] {
         assert!(json[key].as_u64().is_some(), "{key} in {json}");
     }
+    for (level, keys) in [
+        ("tlas", &["instances", "bytes"][..]),
+        ("blas", &["count", "triangles", "bytes"][..]),
+    ] {
+        for key in keys {
+            assert!(
+                json[level][key].as_u64().is_some(),
+                "{level}.{key} in {json}"
+            );
+        }
+        assert!(
+            json[level]["build_seconds"].as_f64().is_some(),
+            "{level} in {json}"
+        );
+    }
     for key in ["samples_per_second", "rays_per_second"] {
         assert!(
             json[key].as_f64().is_some_and(|v| v > 0.0),

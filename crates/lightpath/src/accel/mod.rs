@@ -113,6 +113,14 @@ impl Accel {
         }
     }
 
+    /// Seconds the build took (0 for the list, which has no build).
+    pub fn build_seconds(&self) -> f64 {
+        match self {
+            Accel::List(_) => 0.0,
+            Accel::Bvh(a) => a.stats.build_seconds,
+        }
+    }
+
     /// A few boxes (at most about `max_boxes`) whose union covers everything, each much
     /// tighter than the overall box: the top of the tree. Transforming these and taking
     /// their union gives a tight box for a rotated instance.

@@ -122,6 +122,11 @@ impl MergedMesh {
         si
     }
 
+    /// The instance of each merged triangle.
+    pub fn instances(&self) -> &[u32] {
+        &self.instance
+    }
+
     pub fn memory_bytes(&self) -> usize {
         self.mesh.accel.memory_bytes()
     }

@@ -15,6 +15,21 @@ use crate::material::Material;
 use crate::math::{Bounds3, Ray, Transform};
 use std::sync::Arc;
 
+/// Sizes and build times of the acceleration structures ([`Scene::accel_report`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct AccelReport {
+    pub instances: usize,
+    /// Instances in the top-level BVH (the rest are flattened or unbounded).
+    pub tlas_instances: usize,
+    pub tlas_bytes: usize,
+    pub tlas_build_seconds: f64,
+    /// Distinct bottom-level structures (shared meshes count once).
+    pub blas_count: usize,
+    pub blas_bytes: usize,
+    pub blas_build_seconds: f64,
+    pub blas_triangles: usize,
+}
+
 /// A shape placed in the scene.
 #[derive(Debug, Clone)]
 pub struct Instance {
@@ -297,6 +312,44 @@ impl Scene {
         self.tlas.occluded(ray, &mut local, |k| {
             self.instances[self.bounded[k as usize] as usize].occluded(ray, stats)
         })
+    }
+
+    /// Sizes and build times of the two levels: the top-level structure over instances
+    /// and the bottom-level structures of the distinct meshes (the flattened meshes
+    /// count as bottom level).
+    pub fn accel_report(&self) -> AccelReport {
+        let mut seen = std::collections::HashSet::new();
+        let mut r = AccelReport {
+            instances: self.instances.len(),
+            tlas_instances: self.bounded.len(),
+            tlas_bytes: self.tlas.memory_bytes(),
+            tlas_build_seconds: self.tlas.build_seconds(),
+            ..Default::default()
+        };
+        let mut flattened = vec![false; self.instances.len()];
+        for m in &self.merged {
+            for &i in m.instances() {
+                flattened[i as usize] = true;
+            }
+            r.blas_count += 1;
+            r.blas_bytes += m.memory_bytes();
+            r.blas_build_seconds += m.mesh.accel.build_seconds();
+            r.blas_triangles += m.mesh.triangle_count();
+        }
+        for (i, inst) in self.instances.iter().enumerate() {
+            if let Shape::TriangleMesh(m) = &*inst.shape {
+                if flattened[i] {
+                    continue;
+                }
+                if seen.insert(Arc::as_ptr(m)) {
+                    r.blas_count += 1;
+                    r.blas_bytes += m.accel.memory_bytes();
+                    r.blas_build_seconds += m.accel.build_seconds();
+                    r.blas_triangles += m.triangle_count();
+                }
+            }
+        }
+        r
     }
 
     /// Bytes used by the top-level structure and every distinct mesh's BLAS.
