@@ -778,3 +778,113 @@ fn spawned_rays_do_not_self_intersect() {
         "{acne} of {spawned} spawned rays re-hit their own surface"
     );
 }
+
+#[test]
+fn scene_files_build_trees_with_leaf_materials() {
+    use crate::io::{load_scene_str, LoadOptions};
+    let xml = r#"<integrator type="aov" variable="normals"><scene>
+        <camera type="perspective"/>
+        <instance>
+            <shape type="csg" op="difference">
+                <shape type="sphere"/>
+                <shape type="csg" op="union">
+                    <bsdf type="diffuse"><texture name="albedo" type="constant" value="0.1"/></bsdf>
+                    <shape type="cube"><transform><scale value="0.5"/><translate x="1"/></transform></shape>
+                    <shape type="cylinder">
+                        <transform><scale x="0.3" y="0.3" z="4"/><translate z="-2"/></transform>
+                        <bsdf type="diffuse"><texture name="albedo" type="constant" value="0.2"/></bsdf>
+                    </shape>
+                </shape>
+            </shape>
+            <bsdf type="diffuse"><texture name="albedo" type="constant" value="0.3"/></bsdf>
+            <transform><translate z="5"/></transform>
+        </instance>
+    </scene><sampler type="independent"/></integrator>"#;
+    let loaded =
+        load_scene_str(xml, std::path::Path::new("t.xml"), &LoadOptions::default()).unwrap();
+    let scene = &loaded.scene;
+    let albedo = |si: &SurfaceInteraction| match scene.material(si) {
+        Some(Material::Diffuse(d)) => d.albedo.eval(Vec2::ZERO).x,
+        other => panic!("{other:?}"),
+    };
+    // The sphere: the instance's material.
+    let si = scene
+        .intersect(&Ray::new(Vec3::new(-0.5, 0.5, 0.0), Vec3::Z))
+        .unwrap();
+    assert!((albedo(&si) - 0.3).abs() < 1e-6);
+    // Through the drilled hole (x = y = 0): the cut face at the far end? No: the hole
+    // goes right through, the ray passes.
+    assert!(scene.intersect(&Ray::new(Vec3::ZERO, Vec3::Z)).is_none());
+    // Slightly off the axis, inside the cylinder's radius: nothing either.
+    assert!(scene
+        .intersect(&Ray::new(Vec3::new(0.2, 0.0, 0.0), Vec3::Z))
+        .is_none());
+    // The cube's cut face at x = 0.5, seen from the +x side: inherits the union's
+    // material; its normal points into the hole (+x).
+    let si = scene
+        .intersect(&Ray::new(Vec3::new(3.0, 0.1, 4.8), -Vec3::X))
+        .unwrap();
+    assert!((si.p.x - 0.5).abs() < 1e-5, "{:?}", si.p);
+    assert!((si.n - Vec3::X).length() < 1e-5);
+    assert!((albedo(&si) - 0.1).abs() < 1e-6);
+    // The cylinder's wall, seen from inside the hole: its own material, normal inwards
+    // to the axis.
+    let si = scene
+        .intersect(&Ray::new(Vec3::new(0.0, 0.0, 5.0), Vec3::Y))
+        .unwrap();
+    assert!((si.p.y - 0.3).abs() < 1e-5, "{:?}", si.p);
+    assert!((si.n + Vec3::Y).length() < 1e-5, "{:?}", si.n);
+    assert!((albedo(&si) - 0.2).abs() < 1e-6);
+}
+
+#[test]
+fn scene_file_errors() {
+    use crate::io::{load_scene_str, LoadOptions};
+    let wrap = |shape: &str, extra: &str| {
+        format!(
+            r#"<integrator type="aov" variable="normals"><scene><camera type="perspective"/>
+            <instance>{shape}{extra}</instance></scene><sampler type="independent"/></integrator>"#
+        )
+    };
+    for (shape, extra, needle) in [
+        (
+            r#"<shape type="csg"><shape type="sphere"/><shape type="cube"/></shape>"#,
+            "",
+            "needs an `op`",
+        ),
+        (
+            r#"<shape type="csg" op="minus"><shape type="sphere"/><shape type="cube"/></shape>"#,
+            "",
+            "unknown csg op",
+        ),
+        (
+            r#"<shape type="csg" op="union"><shape type="sphere"/></shape>"#,
+            "",
+            "at least two",
+        ),
+        (
+            r#"<shape type="csg" op="union"><shape type="sphere"/><shape type="rectangle"/></shape>"#,
+            "",
+            "bounds no solid",
+        ),
+        (
+            r#"<shape type="csg" op="union"><shape type="sphere"/><shape type="cylinder" caps="false"/></shape>"#,
+            "",
+            "closed solid",
+        ),
+        (
+            r#"<shape type="csg" op="union"><shape type="sphere"/><shape type="cube"/></shape>"#,
+            r#"<emission type="lambertian"/>"#,
+            "cannot emit",
+        ),
+    ] {
+        let e = load_scene_str(
+            &wrap(shape, extra),
+            std::path::Path::new("t.xml"),
+            &LoadOptions::default(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains(needle), "{e}");
+    }
+}
