@@ -326,7 +326,7 @@ fn check_closed_mesh(m: &TriangleMesh) -> Result<(), String> {
             pos(b)
         ));
     }
-    if !(volume > 0.0) {
+    if volume.is_nan() || volume <= 0.0 {
         return Err(format!(
             "a CSG mesh must be wound with its normals pointing outwards (its signed volume is {volume:.3e}); \
              reverse its triangles"

@@ -123,9 +123,9 @@ fn difference_cut_faces_point_into_the_hole() {
     let ray = Ray::new(Vec3::new(-0.5, -0.5, 5.0), -Vec3::Z);
     let expected = 5.0 - 0.5f32.sqrt();
     assert!((hit_t(&csg, &ray).unwrap() - expected).abs() < 1e-5);
-    // Along +x at y = z = 0.5 from far left: enters the sphere, leaves through the cut
-    // face x = 0 whose flipped normal points to -x... no: the ray leaves the solid there,
-    // so the normal points along the ray (+x is into the hole? The hole is x > 0).
+    // Along +x at y = z = 0.5 from far left: enters the sphere, then leaves the solid
+    // through the cut face x = 0. The cube's face there has the outward normal -x;
+    // flipped, it points into the hole (x > 0), along the ray.
     let ray = Ray::new(Vec3::new(-5.0, 0.5, 0.5), Vec3::X);
     let h = csg.intersect(&ray, &mut RayStats::default()).unwrap();
     assert!((h.t - (5.0 - 0.5f32.sqrt())).abs() < 1e-5, "{}", h.t);
@@ -812,8 +812,7 @@ fn scene_files_build_trees_with_leaf_materials() {
         .intersect(&Ray::new(Vec3::new(-0.5, 0.5, 0.0), Vec3::Z))
         .unwrap();
     assert!((albedo(&si) - 0.3).abs() < 1e-6);
-    // Through the drilled hole (x = y = 0): the cut face at the far end? No: the hole
-    // goes right through, the ray passes.
+    // Down the drilled hole (x = y = 0): it goes right through, the ray passes.
     assert!(scene.intersect(&Ray::new(Vec3::ZERO, Vec3::Z)).is_none());
     // Slightly off the axis, inside the cylinder's radius: nothing either.
     assert!(scene
