@@ -23,6 +23,36 @@ impl Cylinder {
         Bounds3::new(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 1.0))
     }
 
+    /// Both roots (unordered) of the ray's crossings with the infinite side x² + y² = 1,
+    /// solved in the numerically stable form; `None` if the ray misses it or runs parallel
+    /// to the axis.
+    #[inline]
+    pub(crate) fn side_roots(ray: &Ray) -> Option<(f32, f32)> {
+        let (o, d) = (ray.origin, ray.direction);
+        let a = d.x * d.x + d.y * d.y;
+        if a <= 0.0 {
+            return None;
+        }
+        let b = 2.0 * (d.x * o.x + d.y * o.y);
+        let c = o.x * o.x + o.y * o.y - 1.0;
+        let f = b / (2.0 * a);
+        let (vx, vy) = (o.x - f * d.x, o.y - f * d.y);
+        let len = (vx * vx + vy * vy).sqrt();
+        let discrim = 4.0 * a * (1.0 - len) * (1.0 + len);
+        if discrim < 0.0 {
+            return None;
+        }
+        let root = discrim.sqrt();
+        let q = if b < 0.0 {
+            -0.5 * (b - root)
+        } else {
+            -0.5 * (b + root)
+        };
+        let t0 = q / a;
+        let t1 = if q != 0.0 { c / q } else { t0 };
+        Some((t0, t1))
+    }
+
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<ShapeHit> {
         let o = ray.origin;
@@ -35,29 +65,12 @@ impl Cylinder {
                 best = Some((t, prim));
             }
         };
-        // Side: x² + y² = 1, solved in the stable form.
-        let a = d.x * d.x + d.y * d.y;
-        if a > 0.0 {
-            let b = 2.0 * (d.x * o.x + d.y * o.y);
-            let c = o.x * o.x + o.y * o.y - 1.0;
-            let f = b / (2.0 * a);
-            let (vx, vy) = (o.x - f * d.x, o.y - f * d.y);
-            let len = (vx * vx + vy * vy).sqrt();
-            let discrim = 4.0 * a * (1.0 - len) * (1.0 + len);
-            if discrim >= 0.0 {
-                let root = discrim.sqrt();
-                let q = if b < 0.0 {
-                    -0.5 * (b - root)
-                } else {
-                    -0.5 * (b + root)
-                };
-                let t0 = q / a;
-                let t1 = if q != 0.0 { c / q } else { t0 };
-                for t in [t0, t1] {
-                    let z = o.z + t * d.z;
-                    if (0.0..=1.0).contains(&z) {
-                        consider(t, 0);
-                    }
+        // Side: x² + y² = 1.
+        if let Some((t0, t1)) = Self::side_roots(ray) {
+            for t in [t0, t1] {
+                let z = o.z + t * d.z;
+                if (0.0..=1.0).contains(&z) {
+                    consider(t, 0);
                 }
             }
         }

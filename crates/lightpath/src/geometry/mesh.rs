@@ -232,7 +232,7 @@ impl TriangleMesh {
     }
 
     #[inline]
-    fn vertices(&self, prim: u32) -> (Vec3, Vec3, Vec3) {
+    pub(crate) fn vertices(&self, prim: u32) -> (Vec3, Vec3, Vec3) {
         let [a, b, c] = self.indices[prim as usize];
         (
             self.positions[a as usize],

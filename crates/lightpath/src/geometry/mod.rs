@@ -1,6 +1,7 @@
 //! Geometry: the shapes a scene is built from, each intersected in its own object space,
 //! and the surface interactions they produce.
 
+mod csg;
 mod cuboid;
 mod cylinder;
 mod disk;
@@ -12,6 +13,7 @@ mod rectangle;
 mod shape;
 mod sphere;
 
+pub use csg::{Csg, CsgNode, CsgOp, Solid};
 pub use cuboid::Cuboid;
 pub use cylinder::Cylinder;
 pub use disk::Disk;

@@ -1,6 +1,8 @@
 //! The closed set of shapes, dispatched by `match` in the hot path.
 
-use super::{Cuboid, Cylinder, Disk, Plane, Rectangle, Sphere, SurfaceInteraction, TriangleMesh};
+use super::{
+    Csg, Cuboid, Cylinder, Disk, Plane, Rectangle, Sphere, SurfaceInteraction, TriangleMesh,
+};
 use crate::accel::RayStats;
 use crate::math::PI;
 use crate::math::{Bounds3, Ray};
@@ -13,7 +15,8 @@ use std::sync::Arc;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ShapeHit {
     pub t: f32,
-    /// Primitive within the shape (triangle, cylinder part, box face).
+    /// Primitive within the shape (triangle, cylinder part, box face; for CSG the leaf
+    /// and its primitive, see [`Csg`]).
     pub prim: u32,
     /// Shape-specific coordinates: barycentrics (b1, b2) for triangles, the hit's x and y
     /// for planar shapes.
@@ -30,6 +33,7 @@ pub enum Shape {
     Cuboid(Cuboid),
     Cylinder(Cylinder),
     TriangleMesh(Arc<TriangleMesh>),
+    Csg(Arc<Csg>),
 }
 
 impl Shape {
@@ -43,6 +47,7 @@ impl Shape {
             Shape::Cuboid(s) => s.bounds(),
             Shape::Cylinder(s) => s.bounds(),
             Shape::TriangleMesh(s) => s.bounds(),
+            Shape::Csg(s) => s.bounds(),
         }
     }
 
@@ -57,6 +62,7 @@ impl Shape {
             Shape::Cuboid(s) => s.intersect(ray),
             Shape::Cylinder(s) => s.intersect(ray),
             Shape::TriangleMesh(s) => s.intersect(ray, stats),
+            Shape::Csg(s) => s.intersect(ray, stats),
         }
     }
 
@@ -65,6 +71,7 @@ impl Shape {
     pub fn occluded(&self, ray: &Ray, stats: &mut RayStats) -> bool {
         match self {
             Shape::TriangleMesh(s) => s.occluded(ray, stats),
+            Shape::Csg(s) => s.intersect(ray, stats).is_some(),
             _ => self.intersect(ray, stats).is_some(),
         }
     }
@@ -79,6 +86,7 @@ impl Shape {
             Shape::Cuboid(s) => s.interaction(ray, hit),
             Shape::Cylinder(s) => s.interaction(ray, hit),
             Shape::TriangleMesh(s) => s.interaction(ray, hit),
+            Shape::Csg(s) => s.interaction(ray, hit),
         }
     }
 
@@ -118,7 +126,7 @@ impl Shape {
         }
     }
 
-    /// Object-space surface area (infinite for the plane).
+    /// Object-space surface area (infinite for the plane; NaN, unknown, for CSG).
     pub fn area(&self) -> f32 {
         match self {
             Shape::Sphere(_) => 4.0 * PI,
@@ -134,11 +142,12 @@ impl Shape {
                 }
             }
             Shape::TriangleMesh(m) => m.area(),
+            Shape::Csg(_) => f32::NAN,
         }
     }
 
     /// A point on the surface, uniform in object-space area: its interaction (object
-    /// space, `wo` along the normal) and the area density. `None` for the plane and for
+    /// space, `wo` along the normal) and the area density. `None` for the plane, CSG and
     /// shapes without area.
     pub fn sample_area(&self, u_prim: f32, u: Vec2) -> Option<(SurfaceInteraction, f32)> {
         let area = self.area();
@@ -158,7 +167,7 @@ impl Shape {
                     },
                 )
             }
-            Shape::Plane(_) => return None,
+            Shape::Plane(_) | Shape::Csg(_) => return None,
             Shape::Rectangle(_) => {
                 let xy = u * 2.0 - Vec2::ONE;
                 (
@@ -259,6 +268,7 @@ impl Shape {
             Shape::Cuboid(_) => "cube",
             Shape::Cylinder(_) => "cylinder",
             Shape::TriangleMesh(_) => "mesh",
+            Shape::Csg(_) => "csg",
         }
     }
 }

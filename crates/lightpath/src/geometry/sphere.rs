@@ -24,7 +24,7 @@ impl Sphere {
 
     /// Both roots of the ray–sphere quadratic and a bound on their absolute error.
     #[inline]
-    fn roots(ray: &Ray) -> Option<(f32, f32, f32)> {
+    pub(crate) fn roots(ray: &Ray) -> Option<(f32, f32, f32)> {
         let o = ray.origin;
         let d = ray.direction;
         let a = d.length_squared();

@@ -88,7 +88,7 @@ impl PathTracer {
             if depth >= self.max_depth {
                 break;
             }
-            let Some(material) = inst.material.as_deref() else {
+            let Some(material) = scene.material(&si) else {
                 break;
             };
             let wo = si.wo;

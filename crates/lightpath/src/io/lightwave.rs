@@ -33,7 +33,10 @@ use crate::camera::{
     Aperture, Camera, Fisheye, FisheyeMapping, FovAxis, Orthographic, Perspective, ThinLens,
 };
 use crate::error::{Error, Result};
-use crate::geometry::{Cuboid, Cylinder, Disk, Plane, Rectangle, Shape, Sphere, TriangleMesh};
+use crate::geometry::{
+    Csg, CsgNode, CsgOp, Cuboid, Cylinder, Disk, Plane, Rectangle, Shape, Solid, Sphere,
+    TriangleMesh,
+};
 use crate::integrator::{
     AmbientOcclusion, Aov, AovVariable, CameraDirection, Direct, Integrator, PathTracer,
 };
@@ -989,6 +992,11 @@ impl Builder {
                 }
                 let radiance = self.bsdf_slot(node, "emission", Vec3::ONE)?;
                 node.check_all_used()?;
+                if let Shape::Csg(_) = shape {
+                    return Err(
+                        node.error("a csg cannot emit light: the area of its surface is not known")
+                    );
+                }
                 if !shape.area().is_finite() {
                     return Err(node.error(format!(
                         "a {} cannot emit light: its area is infinite",
@@ -1006,6 +1014,13 @@ impl Builder {
         if let Some(s) = self.shapes.get(&key) {
             return Ok(s.clone());
         }
+        if node.type_name.as_deref() == Some("csg") {
+            let root = self.csg_node(node, None)?;
+            let csg = Csg::new(root).map_err(|m| node.error(m))?;
+            let shape = Arc::new(Shape::Csg(Arc::new(csg)));
+            self.shapes.insert(key, shape.clone());
+            return Ok(shape);
+        }
         self.check_children(node, &[])?;
         const KNOWN: &[&str] = &[
             "sphere",
@@ -1016,6 +1031,7 @@ impl Builder {
             "cylinder",
             "mesh",
             "group",
+            "csg",
         ];
         let shape = match node.type_name.as_deref() {
             Some("sphere") => Arc::new(Shape::Sphere(Sphere)),
@@ -1026,30 +1042,7 @@ impl Builder {
             Some("cylinder") => Arc::new(Shape::Cylinder(Cylinder {
                 caps: node.bool_or("caps", false)?,
             })),
-            Some("mesh") => {
-                let file = node
-                    .string("filename")
-                    .ok_or_else(|| node.error("<shape type=\"mesh\"> needs a `filename`"))?;
-                let smooth = node.bool_or("smooth", true)?;
-                let path = resolve_path(&node.location.file, &file);
-                let canonical = path.canonicalize().unwrap_or_else(|_| path.clone());
-                match self.meshes.get(&(canonical.clone(), smooth)) {
-                    Some(s) => s.clone(),
-                    None => {
-                        let data = crate::io::load_mesh(&path)
-                            .map_err(|e| node.error(format!("cannot load mesh: {e}")))?;
-                        let mesh = TriangleMesh::new(
-                            data,
-                            smooth,
-                            self.options.accel.unwrap_or(default_accel()),
-                        )
-                        .map_err(|m| node.error(format!("{}: {m}", path.display())))?;
-                        let s = Arc::new(Shape::TriangleMesh(Arc::new(mesh)));
-                        self.meshes.insert((canonical, smooth), s.clone());
-                        s
-                    }
-                }
-            }
+            Some("mesh") => self.mesh(node)?,
             Some("group") => {
                 return Err(node.error("a group can only be placed by an <instance>"));
             }
@@ -1058,6 +1051,107 @@ impl Builder {
         node.check_all_used()?;
         self.shapes.insert(key, shape.clone());
         Ok(shape)
+    }
+
+    /// A `<shape type="mesh">`, loaded once per file and smoothing.
+    fn mesh(&mut self, node: &Node) -> Result<Arc<Shape>> {
+        let file = node
+            .string("filename")
+            .ok_or_else(|| node.error("<shape type=\"mesh\"> needs a `filename`"))?;
+        let smooth = node.bool_or("smooth", true)?;
+        let path = resolve_path(&node.location.file, &file);
+        let canonical = path.canonicalize().unwrap_or_else(|_| path.clone());
+        if let Some(s) = self.meshes.get(&(canonical.clone(), smooth)) {
+            return Ok(s.clone());
+        }
+        let data = crate::io::load_mesh(&path)
+            .map_err(|e| node.error(format!("cannot load mesh: {e}")))?;
+        let mesh = TriangleMesh::new(data, smooth, self.options.accel.unwrap_or(default_accel()))
+            .map_err(|m| node.error(format!("{}: {m}", path.display())))?;
+        let s = Arc::new(Shape::TriangleMesh(Arc::new(mesh)));
+        self.meshes.insert((canonical, smooth), s.clone());
+        Ok(s)
+    }
+
+    /// A node of a CSG tree: a `<shape type="csg" op="...">` with two or more `<shape>`
+    /// operands (folded from the left), or a closed solid. Either may have a
+    /// `<transform>` and a `<bsdf>`; `inherited` is the nearest enclosing node's `<bsdf>`.
+    fn csg_node(&mut self, node: &Rc<Node>, inherited: Option<Arc<Material>>) -> Result<CsgNode> {
+        expect_tag(node, "shape")?;
+        let kind = node.type_name.as_deref().unwrap_or("");
+        if kind == "csg" {
+            self.check_children(node, &["shape", "transform", "bsdf"])?;
+        } else {
+            self.check_children(node, &["transform", "bsdf"])?;
+        }
+        let mut bsdfs = node.children_tagged("bsdf");
+        let material = match (bsdfs.next(), bsdfs.next()) {
+            (_, Some(second)) => {
+                return Err(second.error(format!("{} has more than one <bsdf>", node.describe())))
+            }
+            (Some(b), None) => Some(self.material(b)?),
+            (None, None) => inherited,
+        };
+        let transform = self.optional_transform(node)?;
+        let csg = match kind {
+            "csg" => {
+                let name = node.string("op").ok_or_else(|| {
+                    node.error(format!(
+                        "<shape type=\"csg\"> needs an `op`: {}",
+                        CsgOp::NAMES.join(", ")
+                    ))
+                })?;
+                let op = CsgOp::from_name(&name).ok_or_else(|| {
+                    node.error(format!(
+                        "unknown csg op `{name}`; known: {}",
+                        CsgOp::NAMES.join(", ")
+                    ))
+                })?;
+                let operands: Vec<Rc<Node>> = node.children_tagged("shape").cloned().collect();
+                if operands.len() < 2 {
+                    return Err(node.error(format!(
+                        "<shape type=\"csg\"> needs at least two <shape> operands, found {}",
+                        operands.len()
+                    )));
+                }
+                let mut tree = self.csg_node(&operands[0], material.clone())?;
+                for operand in &operands[1..] {
+                    let right = self.csg_node(operand, material.clone())?;
+                    tree = CsgNode::op(op, tree, right);
+                }
+                tree
+            }
+            "sphere" => CsgNode::leaf(Solid::Sphere).with_material(material),
+            "cube" | "box" => CsgNode::leaf(Solid::Cube).with_material(material),
+            "cylinder" => {
+                if !node.bool_or("caps", true)? {
+                    return Err(node.error(
+                        "a cylinder in a csg is a closed solid: it cannot have caps=\"false\"",
+                    ));
+                }
+                CsgNode::leaf(Solid::Cylinder).with_material(material)
+            }
+            "mesh" => {
+                let Shape::TriangleMesh(m) = &*self.mesh(node)? else {
+                    unreachable!("mesh() builds meshes")
+                };
+                CsgNode::leaf(Solid::Mesh(m.clone())).with_material(material)
+            }
+            "rectangle" | "disk" | "plane" => {
+                return Err(node.error(format!(
+                    "a {kind} bounds no solid; csg operands are sphere, cube, cylinder, mesh \
+                     (closed) and csg"
+                )))
+            }
+            _ => {
+                return Err(unknown_type(
+                    node,
+                    &["sphere", "cube", "cylinder", "mesh", "csg"],
+                ))
+            }
+        };
+        node.check_all_used()?;
+        Ok(csg.transformed(&transform))
     }
 }
 

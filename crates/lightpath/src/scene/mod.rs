@@ -216,6 +216,19 @@ impl Scene {
         }
     }
 
+    /// The material at a hit: the CSG leaf's own when it has one, else the instance's.
+    /// `None` absorbs all light.
+    #[inline]
+    pub fn material(&self, si: &SurfaceInteraction) -> Option<&Material> {
+        let inst = &self.instances[si.instance as usize];
+        if let Shape::Csg(csg) = &*inst.shape {
+            if let Some(m) = csg.leaf_material(si.prim) {
+                return Some(m);
+            }
+        }
+        inst.material.as_deref()
+    }
+
     /// Solid-angle density with which next-event estimation from `p` (light selection
     /// included) picks the emitter hit at `si` by a ray in direction `wi`.
     pub fn emitter_pdf(&self, p: glam::Vec3, si: &SurfaceInteraction, wi: glam::Vec3) -> f32 {
