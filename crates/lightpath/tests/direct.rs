@@ -1,20 +1,9 @@
 //! Direct illumination against closed-form answers.
 
 use lightpath::io::{load_scene_str, LoadOptions};
-use lightpath::render::Renderer;
+mod common;
+use common::render;
 use std::path::Path;
-
-fn render(xml: &str) -> lightpath::film::Image {
-    let loaded = load_scene_str(xml, Path::new("test.xml"), &LoadOptions::default()).unwrap();
-    let camera = loaded.scene.camera.as_ref().unwrap();
-    let renderer = Renderer {
-        scene: &loaded.scene,
-        camera,
-        integrator: &loaded.integrator,
-        sampler: &loaded.sampler,
-    };
-    renderer.render(&|_| {}).unwrap().0
-}
 
 /// A diffuse plane (albedo 0.5) at z = 0 under a point light at height h: the radiance
 /// is albedo/π · I cosθ / r², pixel by pixel, seen by an orthographic camera from above.

@@ -1,20 +1,7 @@
 //! The path tracer against closed-form answers.
 
-use lightpath::io::{load_scene_str, LoadOptions};
-use lightpath::render::Renderer;
-use std::path::Path;
-
-fn render(xml: &str) -> lightpath::film::Image {
-    let loaded = load_scene_str(xml, Path::new("test.xml"), &LoadOptions::default()).unwrap();
-    let camera = loaded.scene.camera.as_ref().unwrap();
-    let renderer = Renderer {
-        scene: &loaded.scene,
-        camera,
-        integrator: &loaded.integrator,
-        sampler: &loaded.sampler,
-    };
-    renderer.render(&|_| {}).unwrap().0
-}
+mod common;
+use common::render;
 
 fn mean_and_worst(img: &lightpath::film::Image, expected: f32) -> (f64, f32) {
     let (w, h) = (img.width, img.height);
