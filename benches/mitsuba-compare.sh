@@ -29,7 +29,8 @@ mitsuba() { # variant spp out.exr -> prints seconds
 }
 lightpath() { # sampler spp out.exr -> prints seconds
     "$LP" render benches/scenes/cbox.xml -D spp="$2" -D depth=8 -D res=256 -D sampler="$1" \
-        --threads 2 -o "$3" 2>&1 | sed -n 's/.*(\([0-9.]*\) s,.*/\1/p'
+        --threads 2 -o "$3" -q --stats-json "$3.json"
+    "$PY" -c "import json,sys; print(json.load(open(sys.argv[1]))['seconds']['render'])" "$3.json"
 }
 relmse() {
     "$PY" "$TOOLS/compare.py" "$1" "$OUT/ref.exr" | sed -n 's/.*relMSE=\([0-9.e-]*\).*/\1/p'
