@@ -29,6 +29,19 @@ pub fn bar(name: &str, quiet: bool) -> ProgressBar {
     bar
 }
 
+/// A spinner with a message for work of unknown length (loading, building), drawn only
+/// where the bar would be.
+pub fn spinner(message: &str, quiet: bool) -> ProgressBar {
+    if !visible(quiet) {
+        return ProgressBar::hidden();
+    }
+    let s = ProgressBar::new_spinner();
+    s.set_style(ProgressStyle::with_template("{spinner} {msg} {elapsed}").expect("valid template"));
+    s.set_message(message.to_string());
+    s.enable_steady_tick(std::time::Duration::from_millis(120));
+    s
+}
+
 /// `12.3 M` for 12.3e6.
 pub fn si(v: f64) -> String {
     if v >= 1e9 {

@@ -74,14 +74,23 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let quiet = args.options.quiet;
     let load = args.options.load_options()?;
     let start = Instant::now();
+    let spinner = progress::spinner("loading scene and building accelerators", quiet);
     let loaded = match &args.scene {
-        Some(path) => io::load_scene(path, &load)?,
-        None => default_scene::load(&load)?,
+        Some(path) => io::load_scene(path, &load),
+        None => default_scene::load(&load),
     };
+    spinner.finish_and_clear();
+    let loaded = loaded?;
     let load_seconds = start.elapsed().as_secs_f64();
     let summary = SceneSummary::of(&loaded);
     if args.verbose && !quiet {
         eprintln!("{}", loaded_log(&loaded, &summary, load_seconds));
+    }
+    if !quiet && camera_sees_nothing(&loaded) {
+        eprintln!(
+            "warning: the camera sees nothing: no ray through a 16x16 grid of the image hits \
+             a surface and there is no environment light"
+        );
     }
     if !quiet && summary.is_dark() && needs_light(&loaded.integrator) {
         eprintln!(
@@ -328,4 +337,35 @@ pub fn render_image(loaded: &LoadedScene, options: &RenderOptions) -> Result<(Im
         &mut Live::new(None, &tone, None, true),
     )?;
     Ok((out.image, out.stats))
+}
+
+/// Whether no camera ray through a grid over the image hits anything, with no environment
+/// to see either (a camera pointing away from the scene, or a scene with no objects).
+pub fn camera_sees_nothing(loaded: &LoadedScene) -> bool {
+    let Some(camera) = loaded.scene.camera.as_ref() else {
+        return false;
+    };
+    if loaded.scene.environment.is_some() {
+        return false;
+    }
+    let res = camera.resolution();
+    let n = 16;
+    for j in 0..n {
+        for i in 0..n {
+            let film = lightpath::math::Vec2::new(
+                (i as f32 + 0.5) / n as f32 * res.x as f32,
+                (j as f32 + 0.5) / n as f32 * res.y as f32,
+            );
+            let sample = lightpath::camera::CameraSample {
+                film,
+                lens: lightpath::math::Vec2::splat(0.5),
+            };
+            if let Some(ray) = camera.generate_ray(&sample) {
+                if loaded.scene.intersect(&ray).is_some() {
+                    return false;
+                }
+            }
+        }
+    }
+    true
 }

@@ -536,3 +536,49 @@ fn completions_and_man_page() {
     let out = lightpath(&["completions", "tcsh"], &dir);
     assert!(!out.status.success());
 }
+
+/// A camera that sees no surface and no environment is warned about; one that sees the
+/// scene is not.
+#[test]
+fn camera_seeing_nothing_is_a_warning() {
+    let dir = temp_dir("blind");
+    let away = ao_scene(8, 8, 1)
+        .replace(r#"target="0,0,0""#, r#"target="0,-1,-10""#)
+        .replace(
+            r#"<instance>
+            <shape type="plane"/>
+            <transform><rotate axis="1,0,0" angle="-90"/><translate y="1"/></transform>
+        </instance>"#,
+            "",
+        );
+    std::fs::write(dir.join("away.xml"), away).unwrap();
+    let out = lightpath(&["render", "away.xml", "-o", "a.png"], &dir);
+    assert!(out.status.success());
+    assert!(
+        text(&out.stderr).contains("warning: the camera sees nothing"),
+        "{}",
+        text(&out.stderr)
+    );
+    std::fs::write(dir.join("ao.xml"), ao_scene(8, 8, 1)).unwrap();
+    let out = lightpath(&["render", "ao.xml", "-o", "b.png"], &dir);
+    assert!(!text(&out.stderr).contains("sees nothing"));
+}
+
+/// A misspelt property name in a scene is answered with the nearest valid one.
+#[test]
+fn misspelt_property_suggests_the_valid_name() {
+    let dir = temp_dir("typo-prop");
+    let scene = ao_scene(8, 8, 1).replace(
+        r#"<integer name="height" value="8"/>"#,
+        r#"<integer name="height" value="8"/><float name="fvo" value="40"/>"#,
+    );
+    std::fs::write(dir.join("typo.xml"), scene).unwrap();
+    let out = lightpath(&["render", "typo.xml", "-o", "t.png"], &dir);
+    assert!(!out.status.success());
+    let err = text(&out.stderr);
+    assert!(
+        err.contains("unknown property `fvo`") && err.contains("did you mean `fov`?"),
+        "{err}"
+    );
+    assert!(err.contains("typo.xml:"), "the error names the file: {err}");
+}

@@ -32,6 +32,9 @@ pub struct Node {
     pub properties: Vec<Property>,
     pub children: Vec<Rc<Node>>,
     used: RefCell<HashSet<String>>,
+    /// Every property name the builder asked for, present or not: the valid names, for
+    /// suggesting one when a property is misspelt.
+    asked: RefCell<HashSet<String>>,
 }
 
 impl Node {
@@ -45,6 +48,7 @@ impl Node {
             properties: Vec::new(),
             children: Vec::new(),
             used: RefCell::new(HashSet::new()),
+            asked: RefCell::new(HashSet::new()),
         }
     }
 
@@ -63,12 +67,14 @@ impl Node {
 
     /// The raw property, marking it used.
     pub fn take(&self, name: &str) -> Option<&Property> {
+        self.asked.borrow_mut().insert(name.to_string());
         let p = self.properties.iter().rev().find(|p| p.name == name)?;
         self.used.borrow_mut().insert(name.to_string());
         Some(p)
     }
 
     pub fn has(&self, name: &str) -> bool {
+        self.asked.borrow_mut().insert(name.to_string());
         self.properties.iter().any(|p| p.name == name)
     }
 
@@ -164,9 +170,15 @@ impl Node {
         let used = self.used.borrow();
         for p in &self.properties {
             if !used.contains(&p.name) {
+                let mut known: Vec<String> = self.asked.borrow().iter().cloned().collect();
+                known.sort();
+                let known_refs: Vec<&str> = known.iter().map(String::as_str).collect();
+                let hint = crate::io::suggest(&p.name, &known_refs)
+                    .map(|s| format!(" (did you mean `{s}`?)"))
+                    .unwrap_or_default();
                 return Err(Error::scene(
                     p.location.clone(),
-                    format!("unknown property `{}` on {}", p.name, self.describe()),
+                    format!("unknown property `{}` on {}{hint}", p.name, self.describe()),
                 ));
             }
         }
