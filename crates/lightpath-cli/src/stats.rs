@@ -13,6 +13,7 @@
 //! | `samples_per_second` | `samples / seconds.render`                                   |
 //! | `rays`               | rays traced: camera, bounce and shadow rays                  |
 //! | `rays_per_second`    | `rays / seconds.render`                                      |
+//! | `rays_by_kind`       | `camera`, `bounce` (closest-hit rays after the first) and `shadow` rays |
 //! | `nodes_visited`      | acceleration-structure nodes entered                         |
 //! | `prims_tested`       | primitives tested for intersection                           |
 //! | `non_finite_samples` | NaN or infinite samples, dropped                             |
@@ -66,6 +67,11 @@ impl Report {
             "samples_per_second": self.per_second(s.samples),
             "rays": s.rays,
             "rays_per_second": self.per_second(s.rays),
+            "rays_by_kind": {
+                "camera": s.camera_rays,
+                "bounce": s.rays.saturating_sub(s.camera_rays + s.shadow_rays),
+                "shadow": s.shadow_rays,
+            },
             "nodes_visited": s.nodes_visited,
             "prims_tested": s.prims_tested,
             "non_finite_samples": s.non_finite_samples,
@@ -113,6 +119,12 @@ impl Report {
                 per(s.samples)
             ),
             format!("rays                {:>10} ({}/s)", s.rays, per(s.rays)),
+            format!(
+                "  by kind           camera {}, bounce {}, shadow {}",
+                s.camera_rays,
+                s.rays.saturating_sub(s.camera_rays + s.shadow_rays),
+                s.shadow_rays
+            ),
             format!(
                 "nodes visited       {:>10} ({:.1} per sample)",
                 s.nodes_visited,

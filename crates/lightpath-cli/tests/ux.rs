@@ -300,6 +300,12 @@ fn stats_json_has_the_documented_keys() {
     ] {
         assert!(json[key].as_u64().is_some(), "{key} in {json}");
     }
+    for kind in ["camera", "bounce", "shadow"] {
+        assert!(
+            json["rays_by_kind"][kind].as_u64().is_some(),
+            "rays_by_kind.{kind} in {json}"
+        );
+    }
     for (level, keys) in [
         ("tlas", &["instances", "bytes"][..]),
         ("blas", &["count", "triangles", "bytes"][..]),

@@ -23,6 +23,8 @@ pub struct RayStats {
     pub prims_tested: u32,
     /// Rays traced through the scene (closest-hit and shadow rays).
     pub rays: u32,
+    /// Of those, shadow (any-hit) rays.
+    pub shadow_rays: u32,
 }
 
 /// Which accelerator to build.

@@ -46,7 +46,7 @@ impl AmbientOcclusion {
         }
         let mut shadow = si.spawn_ray(wi);
         shadow.t_max = self.distance;
-        if scene.occluded(&shadow) {
+        if scene.occluded_with_stats(&shadow, stats) {
             Vec3::ZERO
         } else {
             Vec3::ONE

@@ -311,6 +311,7 @@ impl Scene {
     /// `occluded`, counting the ray into `stats`.
     pub fn occluded_with_stats(&self, ray: &Ray, stats: &mut RayStats) -> bool {
         stats.rays += 1;
+        stats.shadow_rays += 1;
         if self.merged.iter().any(|m| m.occluded(ray, stats)) {
             return true;
         }
