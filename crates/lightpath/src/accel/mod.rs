@@ -8,9 +8,11 @@
 
 pub mod bvh;
 mod list;
+mod wide_bvh;
 
 pub use bvh::{Bvh, BvhNode, BvhStats};
 pub use list::ListAccel;
+pub use wide_bvh::{Bvh4, Bvh4Node};
 
 use crate::math::{Bounds3, Ray};
 
@@ -38,16 +40,19 @@ pub enum AccelKind {
     /// The lightwave course's binary BVH (binned SAH, leaves of at most two primitives, no
     /// SAH termination): the tree whose statistics the course's `bvh` views show.
     BvhCourse,
+    /// The binary SAH tree collapsed into 4-wide nodes tested with SIMD.
+    Bvh4,
 }
 
 impl AccelKind {
-    pub const NAMES: &'static [&'static str] = &["list", "bvh2", "bvh", "bvh-course"];
+    pub const NAMES: &'static [&'static str] = &["list", "bvh2", "bvh", "bvh4", "bvh-course"];
 
     pub fn from_name(name: &str) -> Option<AccelKind> {
         match name {
             "list" => Some(AccelKind::List),
             "bvh" | "bvh2" => Some(AccelKind::Bvh2),
             "bvh-course" => Some(AccelKind::BvhCourse),
+            "bvh4" => Some(AccelKind::Bvh4),
             _ => None,
         }
     }
@@ -58,6 +63,7 @@ impl AccelKind {
 pub enum Accel {
     List(ListAccel),
     Bvh(Bvh),
+    Bvh4(Bvh4),
 }
 
 impl Accel {
@@ -67,6 +73,7 @@ impl Accel {
             AccelKind::List => Accel::List(ListAccel::new(bounds)),
             AccelKind::Bvh2 => Accel::Bvh(Bvh::build(bounds, &bvh::BuildSettings::default())),
             AccelKind::BvhCourse => Accel::Bvh(Bvh::build(bounds, &bvh::BuildSettings::COURSE)),
+            AccelKind::Bvh4 => Accel::Bvh4(Bvh4::build(bounds, &bvh::BuildSettings::default())),
         }
     }
 
@@ -75,6 +82,7 @@ impl Accel {
         match self {
             Accel::List(a) => a.bounds(),
             Accel::Bvh(a) => a.bounds(),
+            Accel::Bvh4(a) => a.bounds(),
         }
     }
 
@@ -90,6 +98,7 @@ impl Accel {
         match self {
             Accel::List(a) => a.intersect(ray, stats, hit),
             Accel::Bvh(a) => a.intersect(ray, stats, hit),
+            Accel::Bvh4(a) => a.intersect(ray, stats, hit),
         }
     }
 
@@ -104,6 +113,7 @@ impl Accel {
         match self {
             Accel::List(a) => a.occluded(ray, stats, blocks),
             Accel::Bvh(a) => a.occluded(ray, stats, blocks),
+            Accel::Bvh4(a) => a.occluded(ray, stats, blocks),
         }
     }
 
@@ -112,6 +122,7 @@ impl Accel {
         match self {
             Accel::List(a) => a.memory_bytes(),
             Accel::Bvh(a) => a.memory_bytes(),
+            Accel::Bvh4(a) => a.memory_bytes(),
         }
     }
 
@@ -120,6 +131,7 @@ impl Accel {
         match self {
             Accel::List(_) => 0.0,
             Accel::Bvh(a) => a.stats.build_seconds,
+            Accel::Bvh4(a) => a.build_seconds,
         }
     }
 
@@ -130,6 +142,7 @@ impl Accel {
         match self {
             Accel::List(a) => a.cover(max_boxes),
             Accel::Bvh(a) => a.cover(max_boxes),
+            Accel::Bvh4(a) => a.cover(max_boxes),
         }
     }
 }
