@@ -1,14 +1,14 @@
 //! A 4-wide BVH: the binary SAH tree collapsed so that every node holds up to four
 //! children whose boxes are stored as structure-of-arrays and tested against a ray at
 //! once with 4-lane SIMD (glam's `Vec4`, SSE on x86-64, a portable fallback elsewhere).
-//! Children are visited nearest first; their entry distances go on the stack and are
-//! culled on pop. Selected with `--accel bvh4`.
+//! The nearest hit child is visited first, the others go on the stack with their entry
+//! distances and are culled on pop. Selected with `--accel bvh4`.
 //!
 //! Status: correct (it agrees with the brute-force list, and renders are bit-identical
-//! to `bvh2`), but not yet faster: single-threaded it takes about 1.09x the binary
-//! tree's time on the Cornell box and the Stanford bunny, so `bvh2` stays the default.
-//! Next steps: 8-bit-quantised or half-width node boxes, an unsorted push with only the
-//! nearest child first, and SIMD triangle tests in leaves.
+//! to `bvh2`), but not yet faster: single-threaded, whole renders take the same time as
+//! with the binary tree on the Stanford bunny and 1.03x on the Cornell box, so `bvh2`
+//! stays the default. Next steps: quantised node boxes, wider (8) nodes with AVX2, and
+//! SIMD triangle tests in leaves.
 //!
 //! Node layout ([`Bvh4Node`], 128 bytes, two cache lines): the six box planes of the four
 //! children as `[f32; 4]` each (96 bytes), then per child a `u32` reference (an inner
@@ -306,9 +306,8 @@ impl Bvh4 {
             if mask == 0 {
                 continue;
             }
-            // Push the hit children far to near, so the nearest is popped next.
-            let mut hits = [Entry::default(); 4];
-            let mut n = 0;
+            // Push the hit children, the nearest last so that it is popped next.
+            let mut nearest: Option<Entry> = None;
             for k in 0..4 {
                 if mask & (1 << k) != 0 && node.count[k] != EMPTY {
                     let entry = Entry {
@@ -316,18 +315,24 @@ impl Bvh4 {
                         count: node.count[k],
                         dist: near[k],
                     };
-                    // Insertion sort, descending by distance.
-                    let mut j = n;
-                    while j > 0 && hits[j - 1].dist < entry.dist {
-                        hits[j] = hits[j - 1];
-                        j -= 1;
+                    match nearest {
+                        Some(best) if best.dist <= entry.dist => {
+                            stack[sp] = entry;
+                            sp += 1;
+                        }
+                        Some(best) => {
+                            stack[sp] = best;
+                            sp += 1;
+                            nearest = Some(entry);
+                        }
+                        None => nearest = Some(entry),
                     }
-                    hits[j] = entry;
-                    n += 1;
                 }
             }
-            stack[sp..sp + n].copy_from_slice(&hits[..n]);
-            sp += n;
+            if let Some(best) = nearest {
+                stack[sp] = best;
+                sp += 1;
+            }
         }
         any
     }
