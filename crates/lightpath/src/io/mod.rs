@@ -2,6 +2,7 @@
 
 pub mod image;
 pub mod lightwave;
+pub mod mitsuba;
 pub mod obj;
 pub mod ply;
 pub mod props;
@@ -45,13 +46,22 @@ pub struct LoadOptions {
 }
 
 /// Loads a scene file; the dialect is recognised from its root element.
+/// A root `<scene version="3...">` is a Mitsuba 3 scene; anything else is lightwave.
 pub fn load_scene(path: &Path, options: &LoadOptions) -> Result<LoadedScene> {
+    if let Ok(text) = std::fs::read_to_string(path) {
+        if mitsuba::is_mitsuba(&text) {
+            return mitsuba::load_str(&text, path, options);
+        }
+    }
     let root = xml::read_file(path, &options.defines)?;
     lightwave::build(&root, path, options)
 }
 
 /// Loads a scene from XML text; relative paths resolve from `path`'s folder.
 pub fn load_scene_str(text: &str, path: &Path, options: &LoadOptions) -> Result<LoadedScene> {
+    if mitsuba::is_mitsuba(text) {
+        return mitsuba::load_str(text, path, options);
+    }
     let root = xml::read_str(text, path, &options.defines)?;
     lightwave::build(&root, path, options)
 }
