@@ -33,6 +33,19 @@
 //! ray origin. Because whole intervals are kept, a ray may start inside any solid:
 //! shadow rays and rays refracted into CSG glass work.
 //!
+//! In the Mitsuba 3 dialect (an extension of that format, which has no CSG):
+//!
+//! ```xml
+//! <shape type="csg">
+//!     <string name="op" value="difference"/>
+//!     <shape type="sphere"><float name="radius" value="1"/></shape>
+//!     <shape type="cube">
+//!         <bsdf type="diffuse"><rgb name="reflectance" value="0.8,0.1,0.1"/></bsdf>
+//!         <transform name="to_world"><scale value="0.7"/><translate z="-0.8"/></transform>
+//!     </shape>
+//! </shape>
+//! ```
+//!
 //! **Surfaces.** A hit keeps its leaf's normal, uv and material; the faces a difference
 //! cuts out of its left operand are the right operand's surface with the normal flipped
 //! (it points into the hole, out of the solid). `ShapeHit::prim` encodes the flip, the
