@@ -8,6 +8,7 @@ mod fsutil;
 mod info;
 mod names;
 mod progress;
+mod rays;
 mod render;
 mod stats;
 mod summary;
@@ -43,6 +44,8 @@ enum Command {
     Info(info::InfoArgs),
     /// Tone map a linear image (EXR) to a display image (PNG).
     Tonemap(tonemap::TonemapArgs),
+    /// Trace a ray file against a mesh and write the hits (embree-bench's formats).
+    Rays(rays::RaysArgs),
     /// Print a shell completion script to stdout.
     Completions(completions::CompletionsArgs),
     /// Print the man page (roff) to stdout.
@@ -57,6 +60,7 @@ fn main() {
         Command::Compare(args) => compare::run(args).map(|_| true),
         Command::Info(args) => info::run(args).map(|_| true),
         Command::Tonemap(args) => tonemap::run(args).map(|_| true),
+        Command::Rays(args) => rays::run(args).map(|_| true),
         Command::Completions(args) => completions::completions(args, Cli::command()).map(|_| true),
         Command::Man => completions::man(Cli::command()).map(|_| true),
     };

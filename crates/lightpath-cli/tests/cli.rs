@@ -219,3 +219,93 @@ fn threads_do_not_change_the_image() {
         std::fs::read(dir.join("b.exr")).unwrap()
     );
 }
+
+/// `lightpath rays` writes embree-bench's hit and occlusion formats: every accelerator
+/// gives the brute-force list's answers, a known ray hits the known triangle at the known
+/// distance (in units of its unnormalised direction), and a bad ray file is an error.
+#[test]
+fn rays_command_traces_ray_files() {
+    let dir = temp_dir("rays");
+    // Two quads (four triangles): z = 0 and z = 2, over [0,1]², fan-triangulated.
+    std::fs::write(
+        dir.join("m.obj"),
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 2\nv 1 0 2\nv 1 1 2\nv 0 1 2\nf 1 2 3 4\nf 5 6 7 8\n",
+    )
+    .unwrap();
+    let mut rays = Vec::new();
+    let mut push = |o: [f32; 3], tmin: f32, d: [f32; 3], tmax: f32| {
+        for v in [o[0], o[1], o[2], tmin, d[0], d[1], d[2], tmax] {
+            rays.extend_from_slice(&v.to_le_bytes());
+        }
+    };
+    push([0.25, 0.75, -1.0], 0.0, [0.0, 0.0, 2.0], f32::INFINITY); // hits z=0 at t=0.5, tri 1
+    push([0.25, 0.75, 3.0], 0.0, [0.0, 0.0, -1.0], f32::INFINITY); // hits z=2 at t=1
+    push([0.25, 0.75, -1.0], 0.0, [0.0, 0.0, 1.0], 0.5); // stops short
+    push([5.0, 5.0, -1.0], 0.0, [0.0, 0.0, 1.0], f32::INFINITY); // misses
+    for k in 0..200 {
+        let a = k as f32 * 0.1;
+        push(
+            [0.5, 0.5, 1.0],
+            0.0,
+            [a.cos(), a.sin(), (a * 0.7).cos()],
+            f32::INFINITY,
+        );
+    }
+    std::fs::write(dir.join("r.rays"), &rays).unwrap();
+    let mut outputs = Vec::new();
+    for accel in ["list", "bvh2", "bvh4", "bvh-course"] {
+        let hits = format!("{accel}.hits");
+        let out = lightpath(
+            &["rays", "m.obj", "r.rays", &hits, "--accel", accel, "-q"],
+            &dir,
+        );
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        outputs.push(std::fs::read(dir.join(&hits)).unwrap());
+        let occ = format!("{accel}.occ");
+        let out = lightpath(
+            &[
+                "rays",
+                "m.obj",
+                "r.rays",
+                &occ,
+                "--occluded",
+                "--accel",
+                accel,
+                "-q",
+            ],
+            &dir,
+        );
+        assert!(out.status.success());
+        let occ = std::fs::read(dir.join(&occ)).unwrap();
+        assert_eq!(&occ[..4], &[1, 1, 0, 0]);
+    }
+    for o in &outputs[1..] {
+        assert_eq!(o, &outputs[0]);
+    }
+    let rec = |i: usize| {
+        let r = &outputs[0][8 * i..8 * i + 8];
+        (
+            f32::from_le_bytes(r[..4].try_into().unwrap()),
+            u32::from_le_bytes(r[4..].try_into().unwrap()),
+        )
+    };
+    assert_eq!(outputs[0].len(), 8 * 204);
+    let (t, prim) = rec(0);
+    assert!((t - 0.5).abs() < 1e-6 && prim == 1, "{t} {prim}");
+    let (t, prim) = rec(1);
+    assert!(
+        (t - 1.0).abs() < 1e-6 && (prim == 2 || prim == 3),
+        "{t} {prim}"
+    );
+    assert_eq!(rec(2), (f32::INFINITY, u32::MAX));
+    assert_eq!(rec(3), (f32::INFINITY, u32::MAX));
+    std::fs::write(dir.join("bad.rays"), [0u8; 33]).unwrap();
+    let out = lightpath(&["rays", "m.obj", "bad.rays", "x.hits"], &dir);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("32-byte"));
+    assert!(!dir.join("x.hits").exists());
+}
