@@ -1,5 +1,6 @@
 //! `lightpath`: render scenes, run the course's test scenes, compare images.
 
+mod bench;
 mod compare;
 mod completions;
 mod default_scene;
@@ -46,6 +47,8 @@ enum Command {
     Tonemap(tonemap::TonemapArgs),
     /// Trace a ray file against a mesh and write the hits (embree-bench's formats).
     Rays(rays::RaysArgs),
+    /// Time the acceleration structures on embree-bench's ray sets.
+    Bench(bench::BenchArgs),
     /// Print a shell completion script to stdout.
     Completions(completions::CompletionsArgs),
     /// Print the man page (roff) to stdout.
@@ -61,6 +64,7 @@ fn main() {
         Command::Info(args) => info::run(args).map(|_| true),
         Command::Tonemap(args) => tonemap::run(args).map(|_| true),
         Command::Rays(args) => rays::run(args).map(|_| true),
+        Command::Bench(args) => bench::run(args).map(|_| true),
         Command::Completions(args) => completions::completions(args, Cli::command()).map(|_| true),
         Command::Man => completions::man(Cli::command()).map(|_| true),
     };

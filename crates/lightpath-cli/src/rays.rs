@@ -65,37 +65,9 @@ pub fn run(args: RaysArgs) -> Result<()> {
     let mesh = TriangleMesh::new(data, false, kind)
         .map_err(|m| anyhow::anyhow!("{}: {m}", args.mesh.display()))?;
     let build_s = start.elapsed().as_secs_f64();
-    let bytes =
-        std::fs::read(&args.rays).with_context(|| format!("reading {}", args.rays.display()))?;
-    if bytes.len() % 32 != 0 {
-        bail!(
-            "{}: {} bytes is not a whole number of 32-byte ray records",
-            args.rays.display(),
-            bytes.len()
-        );
-    }
-    let f = |r: &[u8], i: usize| f32::from_le_bytes(r[4 * i..4 * i + 4].try_into().unwrap());
-    let mut rays: Vec<Ray> = bytes
-        .chunks_exact(32)
-        .map(|r| {
-            Ray::with_range(
-                Vec3::new(f(r, 0), f(r, 1), f(r, 2)),
-                Vec3::new(f(r, 4), f(r, 5), f(r, 6)),
-                f(r, 3),
-                f(r, 7),
-            )
-        })
-        .collect();
+    let mut rays = read_rays(&args.rays)?;
     if let Some(n) = args.limit {
         rays.truncate(n);
-    }
-    if let Some(i) = rays.iter().position(|r| {
-        !(r.origin.is_finite() && r.direction.is_finite()) || r.t_min.is_nan() || r.t_max.is_nan()
-    }) {
-        bail!(
-            "{}: ray {i} has a NaN or infinite origin or direction",
-            args.rays.display()
-        );
     }
     let trace_start = Instant::now();
     let out: Vec<u8> = if args.occluded {
@@ -137,4 +109,37 @@ pub fn run(args: RaysArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Reads an embree-bench ray file (32-byte records `ox oy oz tmin dx dy dz tmax`).
+pub fn read_rays(path: &std::path::Path) -> Result<Vec<Ray>> {
+    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    if bytes.len() % 32 != 0 {
+        bail!(
+            "{}: {} bytes is not a whole number of 32-byte ray records",
+            path.display(),
+            bytes.len()
+        );
+    }
+    let f = |r: &[u8], i: usize| f32::from_le_bytes(r[4 * i..4 * i + 4].try_into().unwrap());
+    let rays: Vec<Ray> = bytes
+        .chunks_exact(32)
+        .map(|r| {
+            Ray::with_range(
+                Vec3::new(f(r, 0), f(r, 1), f(r, 2)),
+                Vec3::new(f(r, 4), f(r, 5), f(r, 6)),
+                f(r, 3),
+                f(r, 7),
+            )
+        })
+        .collect();
+    if let Some(i) = rays.iter().position(|r| {
+        !(r.origin.is_finite() && r.direction.is_finite()) || r.t_min.is_nan() || r.t_max.is_nan()
+    }) {
+        bail!(
+            "{}: ray {i} has a NaN or infinite origin or direction",
+            path.display()
+        );
+    }
+    Ok(rays)
 }

@@ -309,3 +309,73 @@ fn rays_command_traces_ray_files() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("32-byte"));
     assert!(!dir.join("x.hits").exists());
 }
+
+/// `lightpath bench` times every accelerator on the ray sets found in a folder and
+/// writes embree-bench's key layout as JSON, with each set's hit count the same for
+/// every accelerator.
+#[test]
+fn bench_command_times_ray_sets() {
+    let dir = temp_dir("bench");
+    std::fs::write(
+        dir.join("m.obj"),
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n\
+         f 1 2 3 4\nf 5 6 7 8\nf 1 2 6 5\nf 4 3 7 8\n",
+    )
+    .unwrap();
+    let mut rays = Vec::new();
+    for k in 0..500 {
+        let a = k as f32 * 0.37;
+        for v in [
+            0.5f32,
+            0.5,
+            0.5,
+            0.0,
+            a.cos(),
+            a.sin(),
+            (a * 1.3).sin(),
+            f32::INFINITY,
+        ] {
+            rays.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    std::fs::write(dir.join("random.rays"), &rays).unwrap();
+    std::fs::write(dir.join("shadow.rays"), &rays).unwrap();
+    let out = lightpath(
+        &[
+            "bench", "m.obj", "--rays", ".", "--accel", "list", "--accel", "bvh2", "--accel",
+            "bvh4", "--reps", "2", "--json", "b.json",
+        ],
+        &dir,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("b.json")).unwrap()).unwrap();
+    let hits = |accel: &str, v: &str, set: &str| {
+        json["accels"][accel]["traversal"][v][set]["hits"]
+            .as_u64()
+            .unwrap()
+    };
+    for accel in ["list", "bvh2", "bvh4"] {
+        assert!(json["accels"][accel]["build"]["ms_median"]
+            .as_f64()
+            .is_some());
+        for v in ["st", "mt"] {
+            for set in ["random", "shadow"] {
+                assert!(
+                    json["accels"][accel]["traversal"][v][set]["mrays_per_s_median"]
+                        .as_f64()
+                        .is_some_and(|m| m > 0.0)
+                );
+                assert_eq!(hits(accel, v, set), hits("list", "st", set));
+            }
+        }
+    }
+    // From inside the box every ray hits one of the four walls or leaves through an
+    // open side.
+    let h = hits("list", "st", "random");
+    assert!(h > 0 && h < 500, "{h}");
+}

@@ -1,0 +1,198 @@
+//! `lightpath bench MESH --rays DIR`: build time, memory and traversal speed of the
+//! acceleration structures on the ray sets `embree-bench gen-rays` writes (primary,
+//! random, diffuse: closest hit; shadow: any hit), timed the way embree-bench times them:
+//! one untimed warm-up, then the median of `--reps` passes, file I/O excluded, single-
+//! threaded and on all threads. `--json FILE` writes embree-bench's key layout per
+//! accelerator (`build.st.ms_median`, `traversal.st.primary.mrays_per_s_median`, …), so
+//! the two outputs compare key by key.
+
+use crate::fsutil;
+use crate::rays::read_rays;
+use anyhow::{bail, Result};
+use lightpath::accel::{AccelKind, RayStats};
+use lightpath::geometry::TriangleMesh;
+use lightpath::math::Ray;
+use rayon::prelude::*;
+use serde_json::{json, Value};
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(clap::Args)]
+pub struct BenchArgs {
+    /// Triangle mesh (.ply or .obj).
+    pub mesh: PathBuf,
+    /// Folder with primary.rays, random.rays, diffuse.rays, shadow.rays (from
+    /// `embree-bench gen-rays MESH --outdir DIR`); missing sets are skipped.
+    #[arg(long)]
+    pub rays: PathBuf,
+    /// Accelerators to measure (repeatable): list, bvh2, bvh4, bvh-course.
+    #[arg(long, default_values_t = vec!["bvh2".to_string(), "bvh4".to_string()])]
+    pub accel: Vec<String>,
+    /// Timed passes (after one warm-up).
+    #[arg(long, default_value_t = 5)]
+    pub reps: usize,
+    /// Write the results as JSON.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+const SETS: [(&str, bool); 4] = [
+    ("primary", false),
+    ("random", false),
+    ("shadow", true),
+    ("diffuse", false),
+];
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// Milliseconds of one pass over the rays; counts into `stats`.
+fn pass(mesh: &TriangleMesh, rays: &[Ray], occluded: bool, threads: usize) -> (f64, u64) {
+    let start = Instant::now();
+    let hits = if threads == 1 {
+        rays.iter().filter(|r| trace(mesh, r, occluded)).count()
+    } else {
+        rays.par_iter().filter(|r| trace(mesh, r, occluded)).count()
+    };
+    (start.elapsed().as_secs_f64() * 1e3, hits as u64)
+}
+
+#[inline]
+fn trace(mesh: &TriangleMesh, r: &Ray, occluded: bool) -> bool {
+    let mut s = RayStats::default();
+    if occluded {
+        mesh.occluded(r, &mut s)
+    } else {
+        mesh.intersect(r, &mut s).is_some()
+    }
+}
+
+pub fn run(args: BenchArgs) -> Result<()> {
+    if args.reps == 0 {
+        bail!("--reps must be at least 1");
+    }
+    let kinds: Vec<(String, AccelKind)> = args
+        .accel
+        .iter()
+        .map(|a| {
+            AccelKind::from_name(a)
+                .map(|k| (a.clone(), k))
+                .ok_or_else(|| {
+                    anyhow::anyhow!(
+                        "unknown --accel `{a}`; known: {}",
+                        AccelKind::NAMES.join(", ")
+                    )
+                })
+        })
+        .collect::<Result<_>>()?;
+    let data = lightpath::io::load_mesh(&args.mesh)?;
+    let triangles = data.indices.len();
+    let mut sets = Vec::new();
+    for (name, occluded) in SETS {
+        let path = args.rays.join(format!("{name}.rays"));
+        if path.exists() {
+            sets.push((name, occluded, read_rays(&path)?));
+        }
+    }
+    if sets.is_empty() {
+        bail!(
+            "{}: no primary/random/shadow/diffuse .rays files (make them with `embree-bench gen-rays MESH --outdir DIR`)",
+            args.rays.display()
+        );
+    }
+    let all = rayon::current_num_threads();
+    let single = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
+    let mut report = serde_json::Map::new();
+    println!(
+        "{:<11} {:>9} {:>9} {:>8} | {:>8} {:>8} {:>8} {:>8}  (Mrays/s, 1 thread / {all} threads)",
+        "accel", "build ms", "bytes/tri", "MB", "primary", "random", "shadow", "diffuse"
+    );
+    for (name, kind) in &kinds {
+        // Build: warm-up, then the median of the passes (the BVH builds in parallel).
+        let mut build_ms = Vec::new();
+        let mut mesh = None;
+        for i in 0..=args.reps {
+            let start = Instant::now();
+            let m = TriangleMesh::new(data.clone(), false, *kind)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", args.mesh.display()))?;
+            if i > 0 {
+                build_ms.push(start.elapsed().as_secs_f64() * 1e3);
+            }
+            mesh = Some(m);
+        }
+        let mesh = mesh.expect("built");
+        let bytes = mesh.accel.memory_bytes();
+        let mut traversal = serde_json::Map::new();
+        let mut line = [String::new(), String::new()];
+        for (variant, threads) in [("st", 1usize), ("mt", all)] {
+            let mut per_set = serde_json::Map::new();
+            for (set, occluded, rays) in &sets {
+                let run_pass = || pass(&mesh, rays, *occluded, threads);
+                let (_, hits) = if threads == 1 {
+                    single.install(run_pass)
+                } else {
+                    run_pass()
+                };
+                let times: Vec<f64> = (0..args.reps)
+                    .map(|_| {
+                        if threads == 1 {
+                            single.install(run_pass).0
+                        } else {
+                            run_pass().0
+                        }
+                    })
+                    .collect();
+                let best = times.iter().cloned().fold(f64::INFINITY, f64::min);
+                let ms = median(times);
+                let mrays = rays.len() as f64 / (ms * 1e3);
+                per_set.insert(
+                    set.to_string(),
+                    json!({
+                        "query": if *occluded { "occluded" } else { "closest_hit" },
+                        "rays": rays.len(),
+                        "hits": hits,
+                        "ms_median": ms,
+                        "mrays_per_s_median": mrays,
+                        "mrays_per_s_best": rays.len() as f64 / (best * 1e3),
+                    }),
+                );
+                line[usize::from(threads != 1)] += &format!(" {mrays:>8.2}");
+            }
+            per_set.insert("threads".into(), json!(threads));
+            traversal.insert(variant.into(), Value::Object(per_set));
+        }
+        let build_median = median(build_ms);
+        println!(
+            "{:<11} {:>9.1} {:>9.1} {:>8.2} |{}\n{:<41}|{}",
+            name,
+            build_median,
+            bytes as f64 / triangles.max(1) as f64,
+            bytes as f64 / 1e6,
+            line[0],
+            "",
+            line[1]
+        );
+        report.insert(
+            name.clone(),
+            json!({
+                "build": {"ms_median": build_median, "bvh_bytes": bytes,
+                          "bytes_per_tri": bytes as f64 / triangles.max(1) as f64},
+                "traversal": Value::Object(traversal),
+            }),
+        );
+    }
+    if let Some(path) = &args.json {
+        let doc = json!({
+            "tool": "lightpath bench",
+            "mesh": {"path": args.mesh.display().to_string(), "triangles": triangles},
+            "config": {"reps": args.reps, "threads": all},
+            "accels": Value::Object(report),
+        });
+        let mut text = serde_json::to_string_pretty(&doc)?;
+        text.push('\n');
+        fsutil::write_atomic(path, text.as_bytes())?;
+    }
+    Ok(())
+}
