@@ -776,30 +776,10 @@ impl Builder {
             Some("rectangle") => (Arc::new(Shape::Rectangle(Rectangle)), Transform::IDENTITY),
             Some("disk") => (Arc::new(Shape::Disk(Disk)), Transform::IDENTITY),
             Some("cube") => (Arc::new(Shape::Cuboid(Cuboid)), Transform::IDENTITY),
-            Some("cylinder") => {
-                let p0 = node.vec3("p0")?.unwrap_or(Vec3::ZERO);
-                let p1 = node.vec3("p1")?.unwrap_or(Vec3::Z);
-                let r = node.float_or("radius", 1.0)?;
-                let d = p1 - p0;
-                let len = d.length();
-                if len == 0.0 || r <= 0.0 {
-                    return Err(node.error("cylinder needs p0 != p1 and radius > 0"));
-                }
-                let frame = crate::math::Frame::from_normal(d / len);
-                let m = glam::Mat4::from_cols(
-                    frame.s.extend(0.0),
-                    frame.t.extend(0.0),
-                    frame.n.extend(0.0),
-                    p0.extend(1.0),
-                );
-                let place = Transform::from_matrix(m)
-                    .ok_or_else(|| node.error("degenerate cylinder frame"))?;
-                let scale = Transform::scale(Vec3::new(r, r, len)).expect("non-zero");
-                (
-                    Arc::new(Shape::Cylinder(Cylinder { caps: false })),
-                    scale.then(&place),
-                )
-            }
+            Some("cylinder") => (
+                Arc::new(Shape::Cylinder(Cylinder { caps: false })),
+                cylinder_placement(node)?,
+            ),
             _ => {
                 return Err(unknown_type(
                     node,
@@ -941,28 +921,8 @@ impl Builder {
                 };
                 (Solid::Mesh(m.clone()), Transform::IDENTITY)
             }
-            Some("cylinder") => {
-                // Mitsuba's cylinder is open; as a solid operand it is closed by caps.
-                let p0 = node.vec3("p0")?.unwrap_or(Vec3::ZERO);
-                let p1 = node.vec3("p1")?.unwrap_or(Vec3::Z);
-                let r = node.float_or("radius", 1.0)?;
-                let d = p1 - p0;
-                let len = d.length();
-                if len == 0.0 || r <= 0.0 {
-                    return Err(node.error("cylinder needs p0 != p1 and radius > 0"));
-                }
-                let frame = crate::math::Frame::from_normal(d / len);
-                let m = glam::Mat4::from_cols(
-                    frame.s.extend(0.0),
-                    frame.t.extend(0.0),
-                    frame.n.extend(0.0),
-                    p0.extend(1.0),
-                );
-                let place = Transform::from_matrix(m)
-                    .ok_or_else(|| node.error("degenerate cylinder frame"))?;
-                let scale = Transform::scale(Vec3::new(r, r, len)).expect("non-zero");
-                (Solid::Cylinder, scale.then(&place))
-            }
+            // Mitsuba's cylinder is open; as a solid operand it is closed by caps.
+            Some("cylinder") => (Solid::Cylinder, cylinder_placement(node)?),
             _ => {
                 return Err(unknown_type(
                     node,
@@ -1454,6 +1414,29 @@ fn transform(node: &Node) -> Result<Transform> {
         t = t.then(&s);
     }
     Ok(t)
+}
+
+/// Mitsuba's cylinder (`p0`, `p1`, `radius`) as a placement of our unit cylinder (radius
+/// 1, z from 0 to 1).
+fn cylinder_placement(node: &Node) -> Result<Transform> {
+    let p0 = node.vec3("p0")?.unwrap_or(Vec3::ZERO);
+    let p1 = node.vec3("p1")?.unwrap_or(Vec3::Z);
+    let r = node.float_or("radius", 1.0)?;
+    let d = p1 - p0;
+    let len = d.length();
+    if len == 0.0 || r <= 0.0 {
+        return Err(node.error("cylinder needs p0 != p1 and radius > 0"));
+    }
+    let frame = crate::math::Frame::from_normal(d / len);
+    let m = glam::Mat4::from_cols(
+        frame.s.extend(0.0),
+        frame.t.extend(0.0),
+        frame.n.extend(0.0),
+        p0.extend(1.0),
+    );
+    let place = Transform::from_matrix(m).ok_or_else(|| node.error("degenerate cylinder frame"))?;
+    let scale = Transform::scale(Vec3::new(r, r, len)).expect("non-zero");
+    Ok(scale.then(&place))
 }
 
 #[cfg(test)]
