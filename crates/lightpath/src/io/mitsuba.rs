@@ -82,7 +82,7 @@ pub fn load_str(text: &str, path: &Path, options: &LoadOptions) -> Result<Loaded
         ids: HashMap::new(),
         aliases: Vec::new(),
         stack: vec![path.canonicalize().unwrap_or_else(|_| path.to_path_buf())],
-        defines: options.defines.clone(),
+        defines: super::xml::sorted_defines(&options.defines),
         fixed: options.defines.iter().map(|(k, _)| k.clone()).collect(),
     };
     let root = reader.parse(text, path)?;
@@ -116,6 +116,7 @@ struct Reader {
     ids: HashMap<String, Rc<Node>>,
     aliases: Vec<(String, String, Location)>,
     stack: Vec<PathBuf>,
+    /// `$name` values, longest name first.
     defines: Vec<(String, String)>,
     /// Names given by `-D`: a `<default>` does not change them.
     fixed: Vec<String>,
@@ -148,16 +149,7 @@ impl Reader {
 
     /// Replaces `$name` by its value, longest names first.
     fn substitute(&self, value: &str) -> String {
-        if !value.contains('$') {
-            return value.to_string();
-        }
-        let mut d: Vec<&(String, String)> = self.defines.iter().collect();
-        d.sort_by_key(|(k, _)| std::cmp::Reverse(k.len()));
-        let mut out = value.to_string();
-        for (k, v) in d {
-            out = out.replace(&format!("${k}"), v);
-        }
-        out
+        super::xml::substitute(value, &self.defines)
     }
 
     fn element(
@@ -234,6 +226,9 @@ impl Reader {
                     if !self.fixed.contains(&name) {
                         self.defines.retain(|(k, _)| *k != name);
                         self.defines.push((name, value));
+                        // Kept longest name first, as substitution needs (sorted here,
+                        // at each rare <default>, not for every attribute).
+                        self.defines = super::xml::sorted_defines(&self.defines);
                     }
                 }
                 "alias" => {

@@ -83,14 +83,7 @@ impl Reader {
     }
 
     fn substitute(&self, value: &str) -> String {
-        if !value.contains('$') {
-            return value.to_string();
-        }
-        let mut out = value.to_string();
-        for (k, v) in &self.defines {
-            out = out.replace(&format!("${k}"), v);
-        }
-        out
+        substitute(value, &self.defines)
     }
 
     fn element(
@@ -186,7 +179,21 @@ impl Reader {
     }
 }
 
-fn sorted_defines(defines: &[(String, String)]) -> Vec<(String, String)> {
+/// Replaces every `$name` in `value`; `defines` must be sorted longest name first (see
+/// [`sorted_defines`]) so that `$ab` is not taken for `$a` followed by `b`.
+pub(crate) fn substitute(value: &str, defines: &[(String, String)]) -> String {
+    if !value.contains('$') {
+        return value.to_string();
+    }
+    let mut out = value.to_string();
+    for (k, v) in defines {
+        out = out.replace(&format!("${k}"), v);
+    }
+    out
+}
+
+/// The defines, longest name first, as [`substitute`] needs them.
+pub(crate) fn sorted_defines(defines: &[(String, String)]) -> Vec<(String, String)> {
     let mut d = defines.to_vec();
     d.sort_by_key(|(k, _)| std::cmp::Reverse(k.len()));
     d
