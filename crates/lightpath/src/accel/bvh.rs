@@ -643,11 +643,12 @@ fn flatten(node: &BuildNode, index: usize, nodes: &mut Vec<BvhNode>) {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::sampling::Pcg32;
 
-    fn random_boxes(n: usize, seed: u64) -> Vec<Bounds3> {
+    /// Random small boxes in [0, 10]³ (shared with the wide BVH's tests).
+    pub(crate) fn random_boxes(n: usize, seed: u64) -> Vec<Bounds3> {
         let mut rng = Pcg32::new(seed, 1);
         (0..n)
             .map(|_| {

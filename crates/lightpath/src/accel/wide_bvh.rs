@@ -390,19 +390,9 @@ impl Bvh4 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::accel::bvh::tests::random_boxes;
     use crate::accel::{Accel, ListAccel};
     use crate::sampling::Pcg32;
-
-    fn random_boxes(n: usize, seed: u64) -> Vec<Bounds3> {
-        let mut rng = Pcg32::new(seed, 1);
-        (0..n)
-            .map(|_| {
-                let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 10.0;
-                let e = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 0.3;
-                Bounds3::new(c - e, c + e)
-            })
-            .collect()
-    }
 
     /// The exact entry distance of a ray into a box (inclusive faces), in f64, with a
     /// zero direction component handled as "inside the slab or not".
