@@ -356,6 +356,7 @@ impl Renderer<'_> {
         let mut sampler = self.sampler.clone();
         let mut pixels = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize);
         let mut stats = RenderStats::default();
+        let filter = self.scene.filter;
         for y in y0..y1 {
             for x in x0..x1 {
                 if let Some(deadline) = job.deadline {
@@ -372,7 +373,8 @@ impl Renderer<'_> {
                 let mut sum = sums[y as usize * res.x as usize + x as usize];
                 for index in job.first..job.first + job.count {
                     sampler.start_pixel_sample(pixel, index);
-                    let film = Vec2::new(x as f32, y as f32) + sampler.next_2d();
+                    let film =
+                        filter.film_position(Vec2::new(x as f32, y as f32), sampler.next_2d());
                     let lens = sampler.next_2d();
                     let value = match self.camera.generate_ray(&CameraSample { film, lens }) {
                         Some(ray) => {

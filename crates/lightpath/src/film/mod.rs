@@ -1,8 +1,10 @@
 //! The film: where samples are averaged into pixels, and the images it develops.
 
+mod filter;
 mod image;
 mod tonemap;
 
+pub use filter::Filter;
 pub use image::Image;
 pub use tonemap::{exposure_scale, Tonemap};
 

@@ -41,6 +41,7 @@ use crate::integrator::{
     AmbientOcclusion, Aov, AovVariable, CameraDirection, Direct, Integrator, PathTracer,
 };
 use crate::light::{DirectionalLight, Emission, Environment, Light, PointLight, SpotLight};
+use crate::material::microfacet::Distribution;
 use crate::material::{
     fresnel, Blend, ComplexIor, Conductor, Dielectric, Diffuse, Material, NormalMap, Plastic,
     Principled, RoughConductor, RoughDielectric, ThinDielectric, TwoSided,
@@ -356,6 +357,7 @@ impl Builder {
                     intensity,
                     cos_falloff_start: beam.to_radians().cos(),
                     cos_cutoff: cutoff.to_radians().cos(),
+                    profile: crate::light::SpotProfile::SmoothstepCosine,
                 })
             }
             Some("envmap") => {
@@ -509,6 +511,7 @@ impl Builder {
                         roughness_u,
                         roughness_v,
                         ior,
+                        distribution: Distribution::Ggx,
                     }),
                     &["reflectance", "roughness", "roughnessU", "roughnessV"],
                 )
@@ -545,6 +548,7 @@ impl Builder {
                         roughness,
                         reflectance,
                         transmittance,
+                        distribution: Distribution::Ggx,
                     }),
                     &["ior", "roughness", "reflectance", "transmittance"],
                 )

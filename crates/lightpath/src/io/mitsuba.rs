@@ -14,8 +14,9 @@
 //!   right and +y down, so the sensor's `to_world` is preceded by a 180° turn about z.
 //!   `fov_axis` `smaller`/`larger` pick x or y from the film size. `near_clip`,
 //!   `far_clip` are read and ignored.
-//! - Films: `hdrfilm` `width`/`height` (defaults 768×576). Every `rfilter` is rendered as
-//!   a box filter (its parameters are accepted and ignored).
+//! - Films: `hdrfilm` `width`/`height` (defaults 768×576). `rfilter` `box`, `tent`
+//!   (`radius`) and `gaussian` (`stddev`; the default filter, as in Mitsuba) are applied
+//!   by filter importance sampling ([`Filter`]); other filters are errors.
 //! - Samplers: `independent` → independent; `stratified`, `multijitter`, `ldsampler`,
 //!   `orthogonal` → our `sobol`; `sample_count` (default 4), `seed`.
 //! - Integrators: `path` `max_depth` counts vertices as Mitsuba does (1: emitters only,
@@ -25,7 +26,9 @@
 //!   (n+1)/2), `dd:depth` (→ distance) or `uv`.
 //! - BSDFs: our `diffuse` reflects on both sides whereas Mitsuba's is black from the
 //!   back; other BSDFs behave as ours do. `roughconductor`/`roughdielectric` `alpha`
-//!   becomes our roughness `sqrt(alpha)` (GGX only; `beckmann` is rendered as GGX).
+//!   becomes our roughness `sqrt(alpha)`, with Mitsuba's default `beckmann` distribution
+//!   or `ggx`. Named conductors (`material`) use the RGB (η, k) that Mitsuba's RGB
+//!   variants derive from its spectral tables ([`fresnel::MITSUBA_METALS`]).
 //!   `roughplastic` is rendered as a smooth `plastic`. `principled` maps `base_color`,
 //!   `roughness`, `metallic`, `specular` (other parameters are errors).
 //!   `twosided` with two different BSDFs is unsupported.
@@ -36,8 +39,8 @@
 //!   Vertically Mitsuba interpolates rows with their centres from pole to pole (row
 //!   y at v = y/(h−1)); ours at v = (y+½)/h: a shift of under half a row.
 //! - Shapes without a BSDF get Mitsuba's default (diffuse 0.5).
-//! - OBJ texture coordinates are used as the loader reads them (`flip_tex_coords` is
-//!   accepted but not applied).
+//! - Texture coordinates follow Mitsuba: a `bitmap` has image row 0 at v = 0 (after its
+//!   `to_uv` transform), and OBJ meshes flip v unless `flip_tex_coords` is false.
 
 use super::image::Transfer;
 use super::props::{Node, Property};
@@ -45,11 +48,15 @@ use super::xml::resolve_path;
 use super::{LoadOptions, LoadedScene};
 use crate::camera::{Camera, FovAxis, Orthographic, Perspective, ThinLens};
 use crate::error::{Error, Location, Result};
+use crate::film::Filter;
 use crate::geometry::{
     Csg, CsgNode, CsgOp, Cuboid, Cylinder, Disk, Rectangle, Shape, Solid, Sphere, TriangleMesh,
 };
 use crate::integrator::{Aov, AovVariable, Direct, Integrator, PathTracer};
-use crate::light::{DirectionalLight, Emission, Environment, Light, PointLight, SpotLight};
+use crate::light::{
+    DirectionalLight, Emission, Environment, Light, PointLight, SpotLight, SpotProfile,
+};
+use crate::material::microfacet::Distribution;
 use crate::material::{
     fresnel, Blend, ComplexIor, Conductor, Dielectric, Diffuse, Material, NormalMap, Plastic,
     Principled, RoughConductor, RoughDielectric, ThinDielectric, TwoSided,
@@ -57,8 +64,10 @@ use crate::material::{
 use crate::math::Transform;
 use crate::sampling::{IndependentSampler, Sampler};
 use crate::scene::{Instance, Scene};
-use crate::texture::{BorderMode, Checkerboard, FilterMode, ImageTexture, Texture};
-use glam::{UVec2, Vec2, Vec3};
+use crate::texture::{
+    BorderMode, Checkerboard, FilterMode, ImageTexture, Texture, TransformedTexture,
+};
+use glam::{Affine2, UVec2, Vec2, Vec3};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
@@ -347,7 +356,7 @@ struct Builder {
     path: PathBuf,
     options: LoadOptions,
     ids: HashMap<String, Rc<Node>>,
-    meshes: HashMap<(PathBuf, bool, bool), Arc<Shape>>,
+    meshes: HashMap<(PathBuf, bool, bool, bool), Arc<Shape>>,
     materials: HashMap<*const Node, Arc<Material>>,
     textures: HashMap<*const Node, Arc<Texture>>,
     images: HashMap<(PathBuf, bool), Arc<crate::film::Image>>,
@@ -444,12 +453,14 @@ impl Builder {
                 clamp: None,
             }),
         };
-        let (camera, sampler) = sensor.ok_or_else(|| root.error("the scene has no <sensor>"))?;
+        let (camera, sampler, filter) =
+            sensor.ok_or_else(|| root.error("the scene has no <sensor>"))?;
         let mut scene = Scene::new(
             instances,
             Some(camera),
             self.options.accel.unwrap_or_default(),
         );
+        scene.filter = filter;
         let weights = vec![1.0; lights.len()];
         scene
             .set_lights(lights, &weights)
@@ -556,12 +567,12 @@ impl Builder {
         }
     }
 
-    fn sensor(&mut self, node: &Node) -> Result<(Camera, Sampler)> {
+    fn sensor(&mut self, node: &Node) -> Result<(Camera, Sampler, Filter)> {
         self.check_children(node, &["transform", "film", "sampler"])?;
         let film = self.single(node, "film")?;
-        let resolution = match &film {
+        let (resolution, filter) = match &film {
             Some(f) => self.film(f)?,
-            None => UVec2::new(768, 576),
+            None => (UVec2::new(768, 576), Filter::gaussian(0.5)),
         };
         let sampler = match self.single(node, "sampler")? {
             Some(s) => self.sampler(&s)?,
@@ -644,19 +655,33 @@ impl Builder {
             }
         };
         node.check_all_used()?;
-        Ok((camera, sampler))
+        Ok((camera, sampler, filter))
     }
 
-    fn film(&self, node: &Node) -> Result<UVec2> {
+    /// The film's size and reconstruction filter (Mitsuba's default: a Gaussian).
+    fn film(&self, node: &Node) -> Result<(UVec2, Filter)> {
         if node.type_name.as_deref() != Some("hdrfilm") {
             return Err(unknown_type(node, &["hdrfilm"]));
         }
         self.check_children(node, &["rfilter"])?;
+        let mut filter = Filter::gaussian(0.5);
         for (_, f) in self.children(node)? {
-            // Every reconstruction filter is rendered as a box.
-            for p in ["radius", "stddev", "B", "C", "lobes"] {
-                f.take(p);
-            }
+            let positive = |name: &str, default: f32| -> Result<f32> {
+                let v = f.float(name)?.unwrap_or(default);
+                if v.is_finite() && v > 0.0 {
+                    Ok(v)
+                } else {
+                    Err(f.error(format!("rfilter {name} must be positive, not {v}")))
+                }
+            };
+            filter = match f.type_name.as_deref() {
+                Some("box") => Filter::Box,
+                Some("tent") => Filter::Tent {
+                    radius: positive("radius", 1.0)?,
+                },
+                Some("gaussian") => Filter::gaussian(positive("stddev", 0.5)?),
+                _ => return Err(unknown_type(&f, &["box", "tent", "gaussian"])),
+            };
             f.check_all_used()?;
         }
         let w = node.int("width")?.unwrap_or(768);
@@ -677,7 +702,7 @@ impl Builder {
             node.take(p);
         }
         node.check_all_used()?;
-        Ok(UVec2::new(w as u32, h as u32))
+        Ok((UVec2::new(w as u32, h as u32), filter))
     }
 
     fn sampler(&self, node: &Node) -> Result<Sampler> {
@@ -715,14 +740,22 @@ impl Builder {
         let path = self.resolve_file(node, file);
         let face_normals = node.bool_or("face_normals", false)?;
         let flip = node.bool_or("flip_normals", false)?;
-        node.bool_or("flip_tex_coords", true)?;
+        // Mitsuba's OBJ reader flips v by default (its images have row 0 at v = 0); its
+        // PLY reader keeps texture coordinates as they are.
+        let is_obj = node.type_name.as_deref() == Some("obj");
+        let flip_uv = is_obj && node.bool_or("flip_tex_coords", true)?;
         let canonical = path.canonicalize().unwrap_or_else(|_| path.clone());
-        let key = (canonical, face_normals, flip);
+        let key = (canonical, face_normals, flip, flip_uv);
         if let Some(s) = self.meshes.get(&key) {
             return Ok(s.clone());
         }
         let mut data = crate::io::load_mesh(&path)
             .map_err(|e| node.error(format!("cannot load mesh: {e}")))?;
+        if flip_uv {
+            for uv in &mut data.uvs {
+                uv.y = 1.0 - uv.y;
+            }
+        }
         if flip {
             for t in &mut data.indices {
                 t.swap(1, 2);
@@ -962,6 +995,7 @@ impl Builder {
                     intensity,
                     cos_falloff_start: beam.to_radians().cos(),
                     cos_cutoff: cutoff.to_radians().cos(),
+                    profile: SpotProfile::LinearAngle,
                 })
             }
             Some("directional") => {
@@ -1057,7 +1091,7 @@ impl Builder {
         }
         let texture = match node.type_name.as_deref() {
             Some("bitmap") => {
-                self.check_children(node, &[])?;
+                self.check_children(node, &["transform"])?;
                 let file = node
                     .string("filename")
                     .ok_or_else(|| node.error("bitmap needs a `filename`"))?;
@@ -1074,11 +1108,29 @@ impl Builder {
                     "clamp" => BorderMode::Clamp,
                     w => return Err(node.error(format!("unsupported wrap_mode `{w}`"))),
                 };
-                Texture::Image(ImageTexture {
-                    image,
-                    border,
-                    filter,
-                    exposure: 1.0,
+                // Mitsuba reads row 0 of the image at v = 0, ours at v = 1: flip v after
+                // the scene's own `to_uv`.
+                let flip_v = Affine2::from_cols(Vec2::X, -Vec2::Y, Vec2::Y);
+                let to_uv = match self.single(node, "transform")? {
+                    Some(t) => {
+                        let m = transform(&t)?;
+                        let m = m.matrix();
+                        Affine2::from_cols(
+                            m.x_axis.truncate().truncate(),
+                            m.y_axis.truncate().truncate(),
+                            m.w_axis.truncate().truncate(),
+                        )
+                    }
+                    None => Affine2::IDENTITY,
+                };
+                Texture::Transformed(TransformedTexture {
+                    to_uv: flip_v * to_uv,
+                    texture: Arc::new(Texture::Image(ImageTexture {
+                        image,
+                        border,
+                        filter,
+                        exposure: 1.0,
+                    })),
                 })
             }
             Some("checkerboard") => {
@@ -1135,11 +1187,12 @@ impl Builder {
     }
 
     /// `alpha` (or `alpha_u`/`alpha_v`) as our roughness sqrt(alpha).
-    fn roughness(&self, node: &Node) -> Result<(Arc<Texture>, Arc<Texture>)> {
-        let dist = node.string_or("distribution", "beckmann");
-        if dist != "ggx" && dist != "beckmann" {
-            return Err(node.error(format!("unknown distribution `{dist}`")));
-        }
+    /// and the microfacet distribution (Mitsuba's default: Beckmann).
+    fn roughness(&self, node: &Node) -> Result<(Arc<Texture>, Arc<Texture>, Distribution)> {
+        let name = node.string_or("distribution", "beckmann");
+        let dist = Distribution::from_name(&name)
+            .ok_or_else(|| node.error(format!("unknown distribution `{name}` (ggx, beckmann)")))?;
+        // Visible normals are always sampled.
         node.bool_or("sample_visible", true)?;
         let r = |a: f32| Arc::new(Texture::Constant(Vec3::splat(a.max(0.0).sqrt())));
         match (
@@ -1149,9 +1202,9 @@ impl Builder {
         ) {
             (a, None, None) => {
                 let t = r(a.unwrap_or(0.1));
-                Ok((t.clone(), t))
+                Ok((t.clone(), t, dist))
             }
-            (None, Some(u), Some(v)) => Ok((r(u), r(v))),
+            (None, Some(u), Some(v)) => Ok((r(u), r(v), dist)),
             _ => Err(node.error("give `alpha` or both `alpha_u` and `alpha_v`")),
         }
     }
@@ -1183,8 +1236,9 @@ impl Builder {
                 let ior = match (node.string("material"), node.vec3("eta")?, node.vec3("k")?) {
                     (Some(n), None, None) if n == "none" => None,
                     (Some(n), None, None) => {
-                        let (eta, k) = fresnel::metal(&n).ok_or_else(|| {
-                            let known: Vec<&str> = fresnel::METALS.iter().map(|m| m.0).collect();
+                        let (eta, k) = fresnel::mitsuba_metal(&n).ok_or_else(|| {
+                            let known: Vec<&str> =
+                                fresnel::MITSUBA_METALS.iter().map(|m| m.0).collect();
                             node.error(format!(
                                 "conductor material `{n}` is not supported; supported: none, {}",
                                 known.join(", ")
@@ -1202,12 +1256,13 @@ impl Builder {
                 if t == "conductor" {
                     Material::Conductor(Conductor { reflectance, ior })
                 } else {
-                    let (roughness_u, roughness_v) = self.roughness(node)?;
+                    let (roughness_u, roughness_v, distribution) = self.roughness(node)?;
                     Material::RoughConductor(RoughConductor {
                         reflectance,
                         roughness_u,
                         roughness_v,
                         ior,
+                        distribution,
                     })
                 }
             }
@@ -1228,7 +1283,7 @@ impl Builder {
                         transmittance,
                     }),
                     _ => {
-                        let (roughness, v) = self.roughness(node)?;
+                        let (roughness, v, distribution) = self.roughness(node)?;
                         if !Arc::ptr_eq(&roughness, &v) {
                             return Err(
                                 node.error("an anisotropic roughdielectric is not supported")
@@ -1239,6 +1294,7 @@ impl Builder {
                             roughness,
                             reflectance,
                             transmittance,
+                            distribution,
                         })
                     }
                 }

@@ -57,8 +57,9 @@ pub struct DirectionalLight {
     pub intensity: Vec3,
 }
 
-/// A spot light: a point light restricted to a cone, with a smooth falloff from
-/// `cos_falloff_start` (full intensity inside) to `cos_cutoff` (dark outside).
+/// A spot light: a point light restricted to a cone, with full intensity inside
+/// `cos_falloff_start`, dark outside `cos_cutoff`, and a falloff of shape `profile`
+/// between.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SpotLight {
     pub position: Vec3,
@@ -67,6 +68,19 @@ pub struct SpotLight {
     pub intensity: Vec3,
     pub cos_falloff_start: f32,
     pub cos_cutoff: f32,
+    pub profile: SpotProfile,
+}
+
+/// The shape of a spot light's falloff between its beam and its cutoff.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SpotProfile {
+    /// A smoothstep of the cosine (pbrt, the lightwave course).
+    #[default]
+    SmoothstepCosine,
+    /// Linear in the angle from the axis (Mitsuba's `spot`).
+    LinearAngle,
+    /// The square of the linear ramp in cosine (glTF's `KHR_lights_punctual`).
+    SquaredCosine,
 }
 
 impl SpotLight {
@@ -80,7 +94,14 @@ impl SpotLight {
             return 0.0;
         }
         let t = (c - self.cos_cutoff) / (self.cos_falloff_start - self.cos_cutoff);
-        t * t * (3.0 - 2.0 * t)
+        match self.profile {
+            SpotProfile::SmoothstepCosine => t * t * (3.0 - 2.0 * t),
+            SpotProfile::SquaredCosine => t * t,
+            SpotProfile::LinearAngle => {
+                let (cutoff, beam) = (self.cos_cutoff.acos(), self.cos_falloff_start.acos());
+                ((cutoff - c.min(1.0).acos()) / (cutoff - beam)).clamp(0.0, 1.0)
+            }
+        }
     }
 }
 

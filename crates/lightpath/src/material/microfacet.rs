@@ -1,6 +1,9 @@
-//! The GGX (Trowbridge–Reitz) microfacet distribution with the separable Smith masking
-//! term, and sampling of its visible normals (Heitz 2018, "Sampling the GGX Distribution
-//! of Visible Normals", JCGT 7(4)).
+//! Microfacet distributions — GGX (Trowbridge–Reitz) and Beckmann — with the separable
+//! Smith masking term, and sampling of their visible normals: Heitz 2018, "Sampling the
+//! GGX Distribution of Visible Normals" (JCGT 7(4)) for GGX; for Beckmann, the slope
+//! sampling of Heitz & d'Eon 2014 ("Importance Sampling Microfacet-Based BSDFs using the
+//! Distribution of Visible Normals") with the numerically robust inversion Jakob
+//! published for Mitsuba.
 //!
 //! Everything works in the local shading frame (normal = +z) with the viewing direction
 //! `wo` in the upper hemisphere: the materials mirror their directions there first.
@@ -30,23 +33,55 @@ pub fn refract(wo: Vec3, n: Vec3, eta: f32, cos_t: f32) -> Vec3 {
     (cos_o / eta - cos_t) * n - wo / eta
 }
 
-/// An anisotropic GGX distribution with roughness `ax` along the tangent (x) and `ay`
-/// along the bitangent (y).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Ggx {
-    pub ax: f32,
-    pub ay: f32,
+/// Which normal distribution a [`Microfacet`] model uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Distribution {
+    /// Trowbridge–Reitz: long tails (the course's and pbrt's choice).
+    #[default]
+    Ggx,
+    /// Beckmann–Spizzichino: a Gaussian of slopes (Mitsuba's default).
+    Beckmann,
 }
 
-impl Ggx {
-    pub fn new(ax: f32, ay: f32) -> Ggx {
-        Ggx { ax, ay }
+impl Distribution {
+    pub fn from_name(name: &str) -> Option<Distribution> {
+        match name {
+            "ggx" => Some(Distribution::Ggx),
+            "beckmann" => Some(Distribution::Beckmann),
+            _ => None,
+        }
+    }
+}
+
+/// An anisotropic microfacet distribution with roughness `ax` along the tangent (x) and
+/// `ay` along the bitangent (y).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Microfacet {
+    pub ax: f32,
+    pub ay: f32,
+    pub distribution: Distribution,
+}
+
+impl Microfacet {
+    /// An anisotropic GGX distribution.
+    pub fn new(ax: f32, ay: f32) -> Microfacet {
+        Microfacet {
+            ax,
+            ay,
+            distribution: Distribution::Ggx,
+        }
     }
 
-    pub fn isotropic(alpha: f32) -> Ggx {
-        Ggx {
-            ax: alpha,
-            ay: alpha,
+    /// An isotropic GGX distribution.
+    pub fn isotropic(alpha: f32) -> Microfacet {
+        Microfacet::new(alpha, alpha)
+    }
+
+    /// The same roughness with another distribution.
+    pub fn with_distribution(self, distribution: Distribution) -> Microfacet {
+        Microfacet {
+            distribution,
+            ..self
         }
     }
 
@@ -58,8 +93,21 @@ impl Ggx {
         }
         let x = m.x / self.ax;
         let y = m.y / self.ay;
-        let c = x * x + y * y + m.z * m.z;
-        INV_PI / (self.ax * self.ay * c * c)
+        match self.distribution {
+            Distribution::Ggx => {
+                let c = x * x + y * y + m.z * m.z;
+                INV_PI / (self.ax * self.ay * c * c)
+            }
+            Distribution::Beckmann => {
+                let z2 = m.z * m.z;
+                let v = (-(x * x + y * y) / z2).exp() * INV_PI / (self.ax * self.ay * z2 * z2);
+                if v.is_finite() {
+                    v
+                } else {
+                    0.0
+                }
+            }
+        }
     }
 
     /// Smith's Λ(w).
@@ -70,7 +118,19 @@ impl Ggx {
             return f32::INFINITY;
         }
         let a2t2 = ((self.ax * w.x).powi(2) + (self.ay * w.y).powi(2)) / z2;
-        0.5 * ((1.0 + a2t2).sqrt() - 1.0)
+        match self.distribution {
+            Distribution::Ggx => 0.5 * ((1.0 + a2t2).sqrt() - 1.0),
+            Distribution::Beckmann => {
+                if a2t2 <= 0.0 {
+                    return 0.0;
+                }
+                // a = 1/(α tan θ); Λ = (erf(a) − 1)/2 + e^{−a²}/(2a√π).
+                let a = (1.0 / a2t2 as f64).sqrt();
+                let l = 0.5 * (crate::math::erf(a) - 1.0)
+                    + (-a * a).exp() / (2.0 * a * std::f64::consts::PI.sqrt());
+                l.max(0.0) as f32
+            }
+        }
     }
 
     /// Smith's masking G1(w, m) = 1/(1 + Λ(w)), zero when `w` sees the back of the
@@ -96,6 +156,9 @@ impl Ggx {
     /// A visible normal for `wo` (upper hemisphere), distributed with
     /// [`pdf_visible`](Self::pdf_visible) (Heitz 2018, listing 1).
     pub fn sample_visible(&self, wo: Vec3, u: Vec2) -> Vec3 {
+        if self.distribution == Distribution::Beckmann {
+            return self.sample_visible_beckmann(wo, u);
+        }
         // Stretch the view direction to the hemisphere configuration.
         let vh = Vec3::new(self.ax * wo.x, self.ay * wo.y, wo.z).normalize();
         // An orthonormal basis around it.
@@ -117,6 +180,77 @@ impl Ggx {
         let nh = p1 * t1 + p2 * t2 + (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt() * vh;
         Vec3::new(self.ax * nh.x, self.ay * nh.y, nh.z.max(0.0)).normalize()
     }
+
+    /// Beckmann visible normals: stretch `wo` to unit roughness, sample the slopes of
+    /// the visible microfacets there, rotate and unstretch them.
+    fn sample_visible_beckmann(&self, wo: Vec3, u: Vec2) -> Vec3 {
+        let wi = Vec3::new(self.ax * wo.x, self.ay * wo.y, wo.z).normalize();
+        let r = (wi.x * wi.x + wi.y * wi.y).sqrt();
+        let (cos_phi, sin_phi) = if r > 0.0 {
+            (wi.x / r, wi.y / r)
+        } else {
+            (1.0, 0.0)
+        };
+        let (sx, sy) = beckmann_visible_slopes(wi.z.clamp(-1.0, 1.0) as f64, u);
+        // Rotate by φ and unstretch.
+        let (sx, sy) = (
+            (cos_phi as f64 * sx - sin_phi as f64 * sy) * self.ax as f64,
+            (sin_phi as f64 * sx + cos_phi as f64 * sy) * self.ay as f64,
+        );
+        let m = Vec3::new(-sx as f32, -sy as f32, 1.0).normalize();
+        if m.is_finite() {
+            m
+        } else {
+            Vec3::Z
+        }
+    }
+}
+
+/// Slopes (x̃, ỹ) of the visible normals of the unit-roughness Beckmann distribution,
+/// seen from a direction with cosine `cos_theta` in the x–z plane.
+///
+/// The x slope inverts its CDF, `C(b) = N (1 + b + tan θ e^{−erf⁻¹(b)²}/√π)` in the
+/// variable `b = erf(x̃)` with `b ∈ [−1, erf(cot θ)]`, by Newton steps safeguarded with
+/// bisection; the y slope is a plain Gaussian.
+fn beckmann_visible_slopes(cos_theta: f64, u: Vec2) -> (f64, f64) {
+    use crate::math::{erf, erf_inv};
+    let inv_sqrt_pi = 1.0 / std::f64::consts::PI.sqrt();
+    let ux = (u.x as f64).max(1e-6);
+    let uy = (u.y as f64).max(1e-6);
+    let sy = erf_inv(2.0 * uy - 1.0);
+    if cos_theta > 0.9999 {
+        // Seen from the normal: the visible slopes are the slopes.
+        return (erf_inv(2.0 * ux - 1.0), sy);
+    }
+    let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
+    let tan_theta = sin_theta / cos_theta;
+    let cot_theta = cos_theta / sin_theta;
+    // The search interval, in erf space.
+    let mut lo = -1.0;
+    let mut hi = erf(cot_theta);
+    // A good first guess (Jakob's polynomial fit in θ).
+    let theta = cos_theta.acos();
+    let fit = 1.0 + theta * (-0.876 + theta * (0.4265 - 0.0594 * theta));
+    let mut b = hi - (1.0 + hi) * (1.0 - ux).powf(fit);
+    let norm = 1.0 / (1.0 + hi + inv_sqrt_pi * tan_theta * (-cot_theta * cot_theta).exp());
+    for _ in 0..100 {
+        if !(b >= lo && b <= hi) {
+            b = 0.5 * (lo + hi);
+        }
+        let x = erf_inv(b);
+        let value = norm * (1.0 + b + inv_sqrt_pi * tan_theta * (-x * x).exp()) - ux;
+        let derivative = norm * (1.0 - x * tan_theta);
+        if value.abs() < 1e-7 {
+            break;
+        }
+        if value > 0.0 {
+            hi = b;
+        } else {
+            lo = b;
+        }
+        b -= value / derivative;
+    }
+    (erf_inv(b), sy)
 }
 
 /// A microfacet reflection pair in the upper hemisphere (`wo.z > 0`, `wi.z > 0`): the
@@ -124,7 +258,7 @@ impl Ggx {
 /// density D_wo(m)/(4 wo·m) with which VNDF sampling produces `wi`. `None` when the pair
 /// cannot be reached (a back-facing half vector, or a direction on the horizon).
 #[inline]
-pub fn reflection(ggx: &Ggx, wo: Vec3, wi: Vec3) -> Option<(Vec3, f32, f32)> {
+pub fn reflection(ggx: &Microfacet, wo: Vec3, wi: Vec3) -> Option<(Vec3, f32, f32)> {
     if wo.z <= 0.0 || wi.z <= 0.0 {
         return None;
     }
@@ -152,7 +286,12 @@ mod tests {
     #[test]
     fn ggx_is_normalised_and_visible_normals_integrate_to_one() {
         let mut rng = Pcg32::new(9, 1);
-        for ggx in [Ggx::isotropic(0.5), Ggx::new(0.3, 0.8)] {
+        for ggx in [
+            Microfacet::isotropic(0.5),
+            Microfacet::new(0.3, 0.8),
+            Microfacet::isotropic(0.5).with_distribution(Distribution::Beckmann),
+            Microfacet::new(0.3, 0.8).with_distribution(Distribution::Beckmann),
+        ] {
             let wo = Vec3::new(0.4, -0.3, 0.6).normalize();
             let n = 400_000;
             let (mut proj, mut vis) = (0.0f64, 0.0f64);
@@ -163,6 +302,89 @@ mod tests {
             }
             assert!((proj / n as f64 - 1.0).abs() < 0.01, "{}", proj / n as f64);
             assert!((vis / n as f64 - 1.0).abs() < 0.01, "{}", vis / n as f64);
+        }
+    }
+
+    /// Sampled visible normals follow `pdf_visible`: a histogram over (cos θ, φ) bins
+    /// against the density integrated over each bin, by a chi-square statistic.
+    #[test]
+    fn visible_normal_samples_follow_their_density() {
+        const NT: usize = 10;
+        const NP: usize = 20;
+        let n = 200_000;
+        for (mf, wo) in [
+            (Microfacet::isotropic(0.3), Vec3::new(0.5, 0.2, 0.6)),
+            (Microfacet::new(0.2, 0.6), Vec3::new(-0.7, 0.3, 0.3)),
+            (
+                Microfacet::isotropic(0.3).with_distribution(Distribution::Beckmann),
+                Vec3::new(0.5, 0.2, 0.6),
+            ),
+            (
+                Microfacet::isotropic(0.8).with_distribution(Distribution::Beckmann),
+                Vec3::new(0.9, 0.0, 0.1),
+            ),
+            (
+                Microfacet::new(0.15, 0.5).with_distribution(Distribution::Beckmann),
+                Vec3::new(-0.4, 0.5, 0.4),
+            ),
+            (
+                Microfacet::isotropic(0.4).with_distribution(Distribution::Beckmann),
+                Vec3::Z,
+            ),
+        ] {
+            let wo = wo.normalize();
+            let bin = |m: Vec3| {
+                let t = ((m.z.clamp(0.0, 1.0)) * NT as f32) as usize;
+                let p = ((m.y.atan2(m.x) + PI) / (2.0 * PI) * NP as f32) as usize;
+                t.min(NT - 1) * NP + p.min(NP - 1)
+            };
+            let mut observed = vec![0f64; NT * NP];
+            let mut rng = Pcg32::new(3, 7);
+            for _ in 0..n {
+                let m = mf.sample_visible(wo, Vec2::new(rng.next_f32(), rng.next_f32()));
+                assert!(m.is_finite() && m.z >= 0.0, "{mf:?}: {m}");
+                observed[bin(m)] += 1.0;
+            }
+            // Expected counts: midpoint rule on a fine grid in (cos θ, φ), where the
+            // solid angle element is d(cos θ) dφ.
+            let mut expected = vec![0f64; NT * NP];
+            let (ft, fp) = (400, 400);
+            for i in 0..ft {
+                let z = (i as f32 + 0.5) / ft as f32;
+                for j in 0..fp {
+                    let phi = (j as f32 + 0.5) / fp as f32 * 2.0 * PI - PI;
+                    let r = (1.0 - z * z).sqrt();
+                    let m = Vec3::new(r * phi.cos(), r * phi.sin(), z);
+                    let da = (1.0 / ft as f32) * (2.0 * PI / fp as f32);
+                    expected[bin(m)] += (mf.pdf_visible(wo, m) * da) as f64 * n as f64;
+                }
+            }
+            let total: f64 = expected.iter().sum();
+            assert!(
+                (total / n as f64 - 1.0).abs() < 0.01,
+                "{mf:?}: mass {total}"
+            );
+            // Pool bins with small expectations, then the chi-square statistic.
+            let (mut chi2, mut dof, mut pool_o, mut pool_e) = (0.0, 0usize, 0.0, 0.0);
+            for (o, e) in observed.iter().zip(&expected) {
+                if *e < 5.0 {
+                    pool_o += o;
+                    pool_e += e;
+                } else {
+                    chi2 += (o - e) * (o - e) / e;
+                    dof += 1;
+                }
+            }
+            if pool_e > 5.0 {
+                chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e;
+                dof += 1;
+            }
+            // Mean dof, sd sqrt(2 dof): 5 sd above is a failure (p < 1e-6).
+            let limit = dof as f64 + 5.0 * (2.0 * dof as f64).sqrt();
+            assert!(
+                chi2 < limit,
+                "{mf:?} wo {wo}: chi2 {chi2:.1} > {limit:.1} ({dof} dof)"
+            );
         }
     }
 

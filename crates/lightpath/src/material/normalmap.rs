@@ -40,18 +40,36 @@ impl NormalMap {
 
     pub fn eval(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> Vec3 {
         let f = self.frame(uv);
-        self.inner.eval_local(uv, f.to_local(wo), f.to_local(wi))
+        let wi_local = f.to_local(wi);
+        if !same_side(wi, wi_local) {
+            return Vec3::ZERO;
+        }
+        self.inner.eval_local(uv, f.to_local(wo), wi_local)
     }
 
     pub fn pdf(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> f32 {
         let f = self.frame(uv);
-        self.inner.pdf_local(uv, f.to_local(wo), f.to_local(wi))
+        let wi_local = f.to_local(wi);
+        if !same_side(wi, wi_local) {
+            return 0.0;
+        }
+        self.inner.pdf_local(uv, f.to_local(wo), wi_local)
     }
 
     pub fn sample(&self, uv: Vec2, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         let f = self.frame(uv);
         let mut bs = self.inner.sample_local(uv, f.to_local(wo), u_lobe, u)?;
-        bs.wi = f.to_world(bs.wi);
-        Some(bs)
+        let wi_local = bs.wi;
+        bs.wi = f.to_world(wi_local);
+        same_side(bs.wi, wi_local).then_some(bs)
     }
+}
+
+/// Whether a direction is on the same side of the unperturbed and the perturbed
+/// surface. Light arriving from behind the surface must not reach the front through a
+/// tilted normal (nor leave through it): as Mitsuba's `normalmap`, such directions
+/// carry nothing.
+#[inline]
+fn same_side(w: Vec3, w_perturbed: Vec3) -> bool {
+    w.z * w_perturbed.z > 0.0
 }

@@ -24,7 +24,7 @@
 //! ```
 
 use super::fresnel::schlick;
-use super::microfacet::{reflect, reflection, roughness_to_alpha, Ggx};
+use super::microfacet::{reflect, reflection, roughness_to_alpha, Microfacet};
 use super::{mirror_to_upper, scalar, valid_pdf, BsdfSample};
 use crate::math::INV_PI;
 use crate::sampling::warp;
@@ -44,7 +44,7 @@ pub struct Principled {
 struct Lobes {
     diffuse: Vec3,
     specular: Vec3,
-    ggx: Ggx,
+    ggx: Microfacet,
     /// Probability of sampling the diffuse lobe.
     p_diffuse: f32,
 }
@@ -62,7 +62,7 @@ impl Principled {
         Lobes {
             diffuse,
             specular,
-            ggx: Ggx::isotropic(roughness_to_alpha(scalar(&self.roughness, uv))),
+            ggx: Microfacet::isotropic(roughness_to_alpha(scalar(&self.roughness, uv))),
             p_diffuse,
         }
     }

@@ -16,7 +16,7 @@
 //! ```
 
 use super::conductor::{conductor_fresnel, ComplexIor};
-use super::microfacet::{reflect, reflection, roughness_to_alpha, Ggx};
+use super::microfacet::{reflect, reflection, roughness_to_alpha, Distribution, Microfacet};
 use super::{mirror_to_upper, scalar, valid_pdf, BsdfSample};
 use crate::texture::Texture;
 use glam::{Vec2, Vec3};
@@ -30,6 +30,7 @@ pub struct RoughConductor {
     /// Roughness along the bitangent; the same texture as `roughness_u` when isotropic.
     pub roughness_v: Arc<Texture>,
     pub ior: Option<ComplexIor>,
+    pub distribution: Distribution,
 }
 
 impl RoughConductor {
@@ -40,17 +41,20 @@ impl RoughConductor {
             roughness_u: roughness.clone(),
             roughness_v: roughness,
             ior: None,
+            distribution: Distribution::Ggx,
         }
     }
 
     /// The microfacet distribution at `uv`.
     #[inline]
-    pub fn ggx(&self, uv: Vec2) -> Ggx {
+    pub fn ggx(&self, uv: Vec2) -> Microfacet {
         let au = roughness_to_alpha(scalar(&self.roughness_u, uv));
-        if Arc::ptr_eq(&self.roughness_u, &self.roughness_v) {
-            return Ggx::isotropic(au);
-        }
-        Ggx::new(au, roughness_to_alpha(scalar(&self.roughness_v, uv)))
+        let av = if Arc::ptr_eq(&self.roughness_u, &self.roughness_v) {
+            au
+        } else {
+            roughness_to_alpha(scalar(&self.roughness_v, uv))
+        };
+        Microfacet::new(au, av).with_distribution(self.distribution)
     }
 
     pub fn eval(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> Vec3 {

@@ -22,7 +22,7 @@
 //! ```
 
 use super::fresnel::fresnel_dielectric_cos;
-use super::microfacet::{reflect, refract, roughness_to_alpha, Ggx};
+use super::microfacet::{reflect, refract, roughness_to_alpha, Distribution, Microfacet};
 use super::{mirror_to_upper, scalar, valid_pdf, BsdfSample};
 use crate::texture::Texture;
 use glam::{Vec2, Vec3};
@@ -34,6 +34,7 @@ pub struct RoughDielectric {
     pub roughness: Arc<Texture>,
     pub reflectance: Arc<Texture>,
     pub transmittance: Arc<Texture>,
+    pub distribution: Distribution,
 }
 
 /// One scattering event in the canonical configuration (wo.z > 0).
@@ -52,8 +53,9 @@ impl RoughDielectric {
     }
 
     #[inline]
-    fn ggx(&self, uv: Vec2) -> Ggx {
-        Ggx::isotropic(roughness_to_alpha(scalar(&self.roughness, uv)))
+    fn ggx(&self, uv: Vec2) -> Microfacet {
+        Microfacet::isotropic(roughness_to_alpha(scalar(&self.roughness, uv)))
+            .with_distribution(self.distribution)
     }
 
     /// Relative index across the boundary for wo on the side `wo_z` says.
@@ -67,7 +69,7 @@ impl RoughDielectric {
     }
 
     /// Value and density for canonical directions (wo.z > 0) and relative index `eta`.
-    fn lobe(ggx: &Ggx, eta: f32, wo: Vec3, wi: Vec3) -> Option<Lobe> {
+    fn lobe(ggx: &Microfacet, eta: f32, wo: Vec3, wi: Vec3) -> Option<Lobe> {
         if wo.z <= 0.0 || wi.z == 0.0 {
             return None;
         }

@@ -14,7 +14,7 @@
 //! - The scene parser for every type and both forms of scalar parameters.
 
 use super::fresnel::fresnel_dielectric;
-use super::microfacet::roughness_to_alpha;
+use super::microfacet::{roughness_to_alpha, Distribution};
 use super::*;
 use crate::math::PI;
 use crate::sampling::Pcg32;
@@ -57,6 +57,7 @@ fn rough_conductor_aniso(ru: f32, rv: f32) -> Material {
         roughness_u: constant(ru),
         roughness_v: constant(rv),
         ior: None,
+        distribution: Distribution::Ggx,
     })
 }
 
@@ -66,7 +67,18 @@ fn rough_dielectric(ior: f32, roughness: f32) -> Material {
         roughness: constant(roughness),
         reflectance: constant(1.0),
         transmittance: constant(1.0),
+        distribution: Distribution::Ggx,
     })
+}
+
+/// A rough conductor or dielectric with another microfacet distribution.
+fn with_distribution(mut m: Material, distribution: Distribution) -> Material {
+    match &mut m {
+        Material::RoughConductor(c) => c.distribution = distribution,
+        Material::RoughDielectric(d) => d.distribution = distribution,
+        _ => panic!("not a microfacet material"),
+    }
+    m
 }
 
 fn plastic(albedo: f32, ior: f32) -> Material {
@@ -139,6 +151,14 @@ fn chi2_cases(family: &str) -> Vec<Case> {
                     cases.push(case(name, rough_conductor_aniso(ru, rv), dir(t, 30.0)));
                 }
             }
+            for (ru, rv) in [(0.3, 0.3), (0.6, 0.6), (0.2, 0.6)] {
+                for t in [20.0, 60.0, 85.0] {
+                    let name = format!("roughconductor beckmann ru={ru} rv={rv} θo={t}");
+                    let m =
+                        with_distribution(rough_conductor_aniso(ru, rv), Distribution::Beckmann);
+                    cases.push(case(name, m, dir(t, 30.0)));
+                }
+            }
         }
         "roughdielectric" => {
             for r in ROUGHNESSES {
@@ -147,6 +167,13 @@ fn chi2_cases(family: &str) -> Vec<Case> {
                         let name = format!("roughdielectric r={r} θo={t} {side}");
                         cases.push(case(name, rough_dielectric(1.5, r), dir(theta, 30.0)));
                     }
+                }
+            }
+            for r in [0.3, 0.6] {
+                for (side, theta) in [("outside", 40.0), ("inside", 140.0), ("inside", 110.0)] {
+                    let name = format!("roughdielectric beckmann r={r} θ={theta} {side}");
+                    let m = with_distribution(rough_dielectric(1.5, r), Distribution::Beckmann);
+                    cases.push(case(name, m, dir(theta, 30.0)));
                 }
             }
         }
@@ -547,14 +574,14 @@ fn incomplete_gamma_matches_known_values() {
 /// pdf for a 10% larger roughness, and a cosine sampler against the uniform hemisphere.
 #[test]
 fn chi2_rejects_wrong_pdfs() {
-    use super::microfacet::{reflection, Ggx};
+    use super::microfacet::{reflection, Microfacet};
     let wo = dir(45.0, 30.0);
     let m = rough_conductor(0.5);
     let sample = |u_lobe, u| m.sample_local(UV, wo, u_lobe, u);
-    let ggx = Ggx::isotropic(roughness_to_alpha(0.5));
+    let ggx = Microfacet::isotropic(roughness_to_alpha(0.5));
     let no_g1 =
         |wi: Vec3| reflection(&ggx, wo, wi).map_or(0.0, |(m, _, _)| ggx.d(m) / (4.0 * wo.z));
-    let wider = Ggx::isotropic(roughness_to_alpha(0.55));
+    let wider = Microfacet::isotropic(roughness_to_alpha(0.55));
     let too_wide = |wi: Vec3| reflection(&wider, wo, wi).map_or(0.0, |(_, _, p)| p);
     let d = diffuse(0.5);
     let cosine = |u_lobe, u| d.sample_local(UV, wo, u_lobe, u);
@@ -928,11 +955,11 @@ fn white_furnace() {
 #[test]
 fn course_forms() {
     use super::fresnel::schlick;
-    use super::microfacet::Ggx;
+    use super::microfacet::Microfacet;
     let (wo, wi) = (dir(35.0, 10.0), dir(50.0, 170.0));
     let m = (wo + wi).normalize();
     let alpha = roughness_to_alpha(0.4);
-    let ggx = Ggx::isotropic(alpha);
+    let ggx = Microfacet::isotropic(alpha);
     let g1 = |w: Vec3| 2.0 / (1.0 + (1.0 + alpha * alpha * (1.0 - w.z * w.z) / (w.z * w.z)).sqrt());
     let d = {
         let c = m.z * m.z;

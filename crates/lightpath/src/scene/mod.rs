@@ -108,6 +108,8 @@ pub struct Scene {
     /// Meshes used by one instance each, flattened into render-space meshes.
     merged: Vec<MergedMesh>,
     pub camera: Option<Camera>,
+    /// The film's pixel reconstruction filter.
+    pub filter: crate::film::Filter,
     bounds: Bounds3,
     /// Lights for next-event estimation and the environment.
     pub lights: Vec<Light>,
@@ -153,6 +155,7 @@ impl Scene {
             unbounded,
             merged,
             camera,
+            filter: crate::film::Filter::Box,
             bounds,
             lights: Vec::new(),
             light_sampler,

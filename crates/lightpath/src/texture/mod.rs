@@ -12,7 +12,8 @@ mod image;
 pub use checkerboard::Checkerboard;
 pub use image::{BorderMode, FilterMode, ImageTexture};
 
-use glam::{Vec2, Vec3};
+use glam::{Affine2, Vec2, Vec3};
+use std::sync::Arc;
 
 /// A texture of any kind.
 #[derive(Debug, Clone)]
@@ -20,6 +21,15 @@ pub enum Texture {
     Constant(Vec3),
     Image(ImageTexture),
     Checkerboard(Checkerboard),
+    /// Another texture looked up at `to_uv · uv` (Mitsuba's `to_uv` transform).
+    Transformed(TransformedTexture),
+}
+
+/// A texture whose lookups go through an affine map of the texture coordinates.
+#[derive(Debug, Clone)]
+pub struct TransformedTexture {
+    pub to_uv: Affine2,
+    pub texture: Arc<Texture>,
 }
 
 impl Texture {
@@ -30,6 +40,7 @@ impl Texture {
             Texture::Constant(c) => *c,
             Texture::Image(t) => t.eval(uv),
             Texture::Checkerboard(t) => t.eval(uv),
+            Texture::Transformed(t) => t.texture.eval(t.to_uv.transform_point2(uv)),
         }
     }
 
@@ -39,6 +50,8 @@ impl Texture {
             Texture::Constant(c) => *c,
             Texture::Image(t) => t.average(),
             Texture::Checkerboard(t) => (t.color0 + t.color1) * 0.5,
+            // Exact for maps that tile the unit square (scales by integers, shifts).
+            Texture::Transformed(t) => t.texture.average(),
         }
     }
 }
