@@ -7,6 +7,7 @@ mod default_scene;
 mod duration;
 mod fsutil;
 mod info;
+mod logger;
 mod names;
 mod progress;
 mod rays;
@@ -56,6 +57,7 @@ enum Command {
 }
 
 fn main() {
+    logger::init(false, false);
     let cli = Cli::parse();
     let result: Result<bool> = match cli.command {
         Command::Render(args) => render::run(args).map(|_| true),
@@ -111,6 +113,11 @@ pub struct RenderOptions {
     /// Print nothing but errors.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Mitsuba scenes: turn unsupported plugins and parameters into warnings and render
+    /// with the documented fallbacks (unknown BSDFs as diffuse 0.5, unknown textures as
+    /// 0.5 grey, unknown emitters and shapes left out, ...) instead of failing.
+    #[arg(long)]
+    pub lenient: bool,
 }
 
 impl RenderOptions {
@@ -132,7 +139,11 @@ impl RenderOptions {
                 .ok_or_else(|| anyhow::anyhow!("-D expects NAME=VALUE, got `{d}`"))?;
             defines.push((k.to_string(), v.to_string()));
         }
-        Ok(lightpath::io::LoadOptions { accel, defines })
+        Ok(lightpath::io::LoadOptions {
+            accel,
+            defines,
+            lenient: self.lenient,
+        })
     }
 
     /// Sets up the global thread pool.

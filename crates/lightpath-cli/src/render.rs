@@ -72,6 +72,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         }
     }
     let quiet = args.options.quiet;
+    crate::logger::init(quiet, args.verbose);
     let load = args.options.load_options()?;
     let start = Instant::now();
     let spinner = progress::spinner("loading scene and building accelerators", quiet);

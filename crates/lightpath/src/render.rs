@@ -373,8 +373,11 @@ impl Renderer<'_> {
                 let mut sum = sums[y as usize * res.x as usize + x as usize];
                 for index in job.first..job.first + job.count {
                     sampler.start_pixel_sample(pixel, index);
-                    let film =
-                        filter.film_position(Vec2::new(x as f32, y as f32), sampler.next_2d());
+                    let film = filter.film_position(
+                        Vec2::new(x as f32, y as f32),
+                        sampler.next_2d(),
+                        res.as_vec2(),
+                    );
                     let lens = sampler.next_2d();
                     let value = match self.camera.generate_ray(&CameraSample { film, lens }) {
                         Some(ray) => {

@@ -49,35 +49,61 @@ impl Filter {
 
     /// Where a camera sample lands in pixel `(x, y)`'s neighbourhood, in film
     /// coordinates (pixel `(x, y)` covers `[x, x+1) × [y, y+1)`), for a uniform `u`.
+    ///
+    /// Samples stay on the film of size `resolution`: near the border the filter is cut
+    /// at the film's edge and renormalised (Mitsuba's `hdrfilm` without `sample_border`),
+    /// so border pixels do not see past the image.
     #[inline]
-    pub fn film_position(&self, pixel: Vec2, u: Vec2) -> Vec2 {
+    pub fn film_position(&self, pixel: Vec2, u: Vec2, resolution: Vec2) -> Vec2 {
         match *self {
             // Kept as `pixel + u` so box-filtered images do not change by rounding.
             Filter::Box => pixel + u,
-            _ => pixel + Vec2::splat(0.5) + Vec2::new(self.sample_1d(u.x), self.sample_1d(u.y)),
+            _ => {
+                let centre = pixel + Vec2::splat(0.5);
+                let r = self.radius();
+                // The offsets that stay on the film, per axis.
+                let lo = (-centre).max(Vec2::splat(-r));
+                let hi = (resolution - centre).min(Vec2::splat(r));
+                centre
+                    + Vec2::new(
+                        self.sample_1d(u.x, lo.x, hi.x),
+                        self.sample_1d(u.y, lo.y, hi.y),
+                    )
+            }
         }
     }
 
-    /// An offset from the pixel centre drawn with density ∝ f₁.
-    fn sample_1d(&self, u: f32) -> f32 {
-        match *self {
-            Filter::Box => u - 0.5,
+    /// An offset from the pixel centre in `[lo, hi]` drawn with density ∝ f₁ there (the
+    /// inverse of the profile's CDF, restricted to the interval).
+    fn sample_1d(&self, u: f32, lo: f32, hi: f32) -> f32 {
+        let (u, lo, hi) = (u as f64, lo as f64, hi as f64);
+        let x = match *self {
+            Filter::Box => lo + u * (hi - lo),
             Filter::Tent { radius } => {
-                // Inverse CDF of the triangle on [-r, r].
-                if u < 0.5 {
-                    radius * ((2.0 * u).sqrt() - 1.0)
+                let r = radius as f64;
+                // The triangle's CDF on [-r, r] and its inverse.
+                let cdf = |x: f64| {
+                    if x <= 0.0 {
+                        (x + r).powi(2) / (2.0 * r * r)
+                    } else {
+                        1.0 - (r - x).powi(2) / (2.0 * r * r)
+                    }
+                };
+                let p = cdf(lo) + u * (cdf(hi) - cdf(lo));
+                if p < 0.5 {
+                    r * ((2.0 * p).sqrt() - 1.0)
                 } else {
-                    radius * (1.0 - (2.0 - 2.0 * u).max(0.0).sqrt())
+                    r * (1.0 - (2.0 - 2.0 * p).max(0.0).sqrt())
                 }
             }
-            Filter::Gaussian { stddev, radius } => {
-                // Inverse CDF of the normal distribution truncated to [-r, r].
+            Filter::Gaussian { stddev, .. } => {
+                // The normal CDF is (1 + erf(x/(σ√2)))/2; invert it between lo and hi.
                 let s = stddev as f64 * std::f64::consts::SQRT_2;
-                let e = erf(radius as f64 / s);
-                let x = s * erf_inv((2.0 * u as f64 - 1.0) * e);
-                (x as f32).clamp(-radius, radius)
+                let (a, b) = (erf(lo / s), erf(hi / s));
+                s * erf_inv(a + u * (b - a))
             }
-        }
+        };
+        (x.clamp(lo, hi)) as f32
     }
 
     /// The filter's value at an offset from the pixel centre (for tests and plots).
@@ -120,7 +146,7 @@ mod tests {
             let mut hist = [0usize; BINS];
             for i in 0..N {
                 let u = (i as f32 + 0.5) / N as f32;
-                let x = filter.sample_1d(u);
+                let x = filter.sample_1d(u, -r, r);
                 assert!(x.abs() <= r, "{filter:?}: offset {x} beyond radius");
                 let b = (((x + r) / (2.0 * r)) * BINS as f32) as usize;
                 hist[b.min(BINS - 1)] += 1;
@@ -147,9 +173,55 @@ mod tests {
         }
     }
 
+    /// Near the film's border the samples stay on the film and follow the filter cut
+    /// there: in a corner pixel, the fraction of samples in the pixel itself matches the
+    /// filter's mass over that pixel relative to its mass on the film.
+    #[test]
+    fn border_pixels_sample_only_the_film() {
+        let res = Vec2::new(4.0, 3.0);
+        for filter in [Filter::Tent { radius: 1.5 }, Filter::gaussian(0.5)] {
+            let n = 100_000;
+            let mut inside_pixel = 0;
+            for i in 0..n {
+                let u = Vec2::new(
+                    (i as f32 + 0.5) / n as f32,
+                    ((i * 7919) % n) as f32 / n as f32,
+                );
+                let p = filter.film_position(Vec2::new(3.0, 0.0), u, res);
+                assert!(p.x >= 0.0 && p.x <= 4.0 && p.y >= 0.0 && p.y <= 3.0, "{p}");
+                if p.x >= 3.0 && p.y <= 1.0 {
+                    inside_pixel += 1;
+                }
+            }
+            // Expected: the filter's mass over the pixel over its mass on the film.
+            let mass = |x0: f32, x1: f32, y0: f32, y1: f32| {
+                let steps = 400;
+                let mut m = 0.0f64;
+                for a in 0..steps {
+                    for b in 0..steps {
+                        let x = x0 + (x1 - x0) * (a as f32 + 0.5) / steps as f32;
+                        let y = y0 + (y1 - y0) * (b as f32 + 0.5) / steps as f32;
+                        m += filter.eval(Vec2::new(x - 3.5, y - 0.5)) as f64
+                            * ((x1 - x0) * (y1 - y0)) as f64;
+                    }
+                }
+                m
+            };
+            let r = filter.radius();
+            let film = mass(3.5 - r, 4.0, 0.0, 0.5 + r);
+            let expected = mass(3.0, 4.0, 0.0, 1.0) / film;
+            let observed = inside_pixel as f64 / n as f64;
+            assert!(
+                (observed - expected).abs() < 0.01,
+                "{filter:?}: {observed} of the samples in the pixel, expected {expected}"
+            );
+        }
+    }
+
     #[test]
     fn box_keeps_samples_inside_the_pixel() {
-        let p = Filter::Box.film_position(Vec2::new(3.0, 4.0), Vec2::new(0.25, 0.75));
+        let res = Vec2::new(8.0, 8.0);
+        let p = Filter::Box.film_position(Vec2::new(3.0, 4.0), Vec2::new(0.25, 0.75), res);
         assert_eq!(p, Vec2::new(3.25, 4.75));
     }
 }

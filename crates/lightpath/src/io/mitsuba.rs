@@ -9,6 +9,19 @@
 //! wavelength list whose values are all equal (anything else is an error naming it).
 //! `<point>`/`<vector>` may give `x y z` attributes instead of `value`.
 //!
+//! Shapes: `obj`, `ply`, `sphere`, `rectangle`, `disk`, `cube`, `cylinder`, and
+//! `shapegroup` + `instance` (each instance places every shape of its group with the
+//! group shape's `to_world` followed by the instance's; meshes are loaded once and shared).
+//!
+//! # Unsupported plugins and `--lenient`
+//! An unsupported plugin or parameter is an error naming the file, line and plugin. With
+//! [`LoadOptions::lenient`](super::LoadOptions) (`lightpath render --lenient`) it is a
+//! logged warning instead, and the scene renders with these fallbacks: an unknown BSDF is
+//! a diffuse 0.5 (Mitsuba's default BSDF), an unknown texture a constant 0.5, unknown
+//! shapes and emitters are left out, an unknown integrator is `path`, sensor
+//! `perspective`, film `hdrfilm`, reconstruction filter `box`, sampler `independent`;
+//! unknown parameters are ignored.
+//!
 //! # Conventions and approximations
 //! - Cameras: Mitsuba's camera space has +x to the image *left* and +y *up*; ours has +x
 //!   right and +y down, so the sensor's `to_world` is preceded by a 180° turn about z.
@@ -343,6 +356,47 @@ const IORS: &[(&str, f32)] = &[
     ("diamond", 2.419),
 ];
 
+/// Mitsuba plugins this dialect reads, by element.
+const INTEGRATORS: &[&str] = &["path", "direct", "aov"];
+const SENSORS: &[&str] = &["perspective", "thinlens", "orthographic"];
+const FILMS: &[&str] = &["hdrfilm"];
+const RFILTERS: &[&str] = &["box", "tent", "gaussian"];
+const SAMPLERS: &[&str] = &[
+    "independent",
+    "stratified",
+    "multijitter",
+    "ldsampler",
+    "orthogonal",
+];
+const SHAPES: &[&str] = &[
+    "obj",
+    "ply",
+    "sphere",
+    "rectangle",
+    "disk",
+    "cube",
+    "cylinder",
+    "instance",
+    "shapegroup",
+    "csg",
+];
+const EMITTERS: &[&str] = &["area", "point", "spot", "directional", "constant", "envmap"];
+const TEXTURES: &[&str] = &["bitmap", "checkerboard"];
+const BSDFS: &[&str] = &[
+    "diffuse",
+    "conductor",
+    "roughconductor",
+    "dielectric",
+    "roughdielectric",
+    "thindielectric",
+    "plastic",
+    "roughplastic",
+    "principled",
+    "twosided",
+    "blendbsdf",
+    "normalmap",
+];
+
 fn unknown_type(node: &Node, known: &[&str]) -> Error {
     let t = node.type_name.as_deref().unwrap_or("");
     node.error(format!(
@@ -350,6 +404,17 @@ fn unknown_type(node: &Node, known: &[&str]) -> Error {
         node.tag,
         known.join(", ")
     ))
+}
+
+/// What `--lenient` does with an unsupported plugin.
+#[derive(Clone, Copy)]
+enum Fallback {
+    /// Build it as this supported plugin instead.
+    Use(&'static str),
+    /// Leave the object out of the scene.
+    Skip,
+    /// The caller substitutes what this describes.
+    Replace(&'static str),
 }
 
 struct Builder {
@@ -431,11 +496,17 @@ impl Builder {
                     }
                     sensor = Some(self.sensor(&child)?);
                 }
-                "shape" => instances.push(self.shape(&child)?),
+                "shape" => match self.plugin(&child, SHAPES, Fallback::Skip)?.as_deref() {
+                    None => {}
+                    // Shape groups are placed by instances.
+                    Some("shapegroup") => {}
+                    Some("instance") => instances.extend(self.instance(&child)?),
+                    Some(_) => instances.push(self.shape(&child)?),
+                },
                 "emitter" => match child.type_name.as_deref() {
                     // Area emitters at the top level are for shapes' <ref>s.
                     Some("area") if child.id.is_some() => {}
-                    _ => lights.push(self.emitter(&child)?),
+                    _ => lights.extend(self.emitter(&child)?),
                 },
                 "bsdf" | "texture" if child.id.is_some() => {}
                 other => {
@@ -474,6 +545,39 @@ impl Builder {
         })
     }
 
+    /// The plugin type of `node` when it is one of `known`. Otherwise an error naming
+    /// the plugin and line, or with `--lenient` a logged warning and the fallback's type
+    /// (`None`: leave the object out).
+    fn plugin(&self, node: &Node, known: &[&str], fallback: Fallback) -> Result<Option<String>> {
+        match node.type_name.as_deref() {
+            Some(t) if known.contains(&t) => Ok(Some(t.to_string())),
+            _ if !self.options.lenient => Err(unknown_type(node, known)),
+            _ => {
+                let what = match fallback {
+                    Fallback::Use(t) => format!("rendered as `{t}`"),
+                    Fallback::Skip => "left out".to_string(),
+                    Fallback::Replace(r) => format!("replaced by {r}"),
+                };
+                log::warn!("{} ({what}: --lenient)", unknown_type(node, known));
+                Ok(match fallback {
+                    Fallback::Use(t) => Some(t.to_string()),
+                    Fallback::Skip | Fallback::Replace(_) => None,
+                })
+            }
+        }
+    }
+
+    /// [`Node::check_all_used`], a warning instead of an error with `--lenient`.
+    fn check_used(&self, node: &Node) -> Result<()> {
+        match node.check_all_used() {
+            Err(e) if self.options.lenient => {
+                log::warn!("{e} (ignored: --lenient)");
+                Ok(())
+            }
+            r => r,
+        }
+    }
+
     fn integrator(&mut self, node: &Node) -> Result<Integrator> {
         self.check_children(node, &[])?;
         let depth = |name: &str, default: i64| -> Result<u32> {
@@ -483,7 +587,8 @@ impl Builder {
                 d => Err(node.error(format!("`{name}` must be -1 or at least 1, got {d}"))),
             }
         };
-        let integrator = match node.type_name.as_deref() {
+        let kind = self.plugin(node, INTEGRATORS, Fallback::Use("path"))?;
+        let integrator = match kind.as_deref() {
             Some("path") => {
                 let max_depth = depth("max_depth", -1)?;
                 let rr_depth = depth("rr_depth", 5)?;
@@ -530,9 +635,9 @@ impl Builder {
                     scale: 1.0,
                 })
             }
-            _ => return Err(unknown_type(node, &["path", "direct", "aov"])),
+            _ => return Err(unknown_type(node, INTEGRATORS)),
         };
-        node.check_all_used()?;
+        self.check_used(node)?;
         Ok(integrator)
     }
 
@@ -613,7 +718,8 @@ impl Builder {
             }
             Ok(fov)
         };
-        let camera = match node.type_name.as_deref() {
+        let kind = self.plugin(node, SENSORS, Fallback::Use("perspective"))?;
+        let camera = match kind.as_deref() {
             Some("perspective") => {
                 node.float("focus_distance")?;
                 let f = fov(node)?;
@@ -647,22 +753,15 @@ impl Builder {
                 FovAxis::X,
                 render_from_camera,
             )),
-            _ => {
-                return Err(unknown_type(
-                    node,
-                    &["perspective", "thinlens", "orthographic"],
-                ))
-            }
+            _ => return Err(unknown_type(node, SENSORS)),
         };
-        node.check_all_used()?;
+        self.check_used(node)?;
         Ok((camera, sampler, filter))
     }
 
     /// The film's size and reconstruction filter (Mitsuba's default: a Gaussian).
     fn film(&self, node: &Node) -> Result<(UVec2, Filter)> {
-        if node.type_name.as_deref() != Some("hdrfilm") {
-            return Err(unknown_type(node, &["hdrfilm"]));
-        }
+        self.plugin(node, FILMS, Fallback::Use("hdrfilm"))?;
         self.check_children(node, &["rfilter"])?;
         let mut filter = Filter::gaussian(0.5);
         for (_, f) in self.children(node)? {
@@ -674,15 +773,15 @@ impl Builder {
                     Err(f.error(format!("rfilter {name} must be positive, not {v}")))
                 }
             };
-            filter = match f.type_name.as_deref() {
+            filter = match self.plugin(&f, RFILTERS, Fallback::Use("box"))?.as_deref() {
                 Some("box") => Filter::Box,
                 Some("tent") => Filter::Tent {
                     radius: positive("radius", 1.0)?,
                 },
                 Some("gaussian") => Filter::gaussian(positive("stddev", 0.5)?),
-                _ => return Err(unknown_type(&f, &["box", "tent", "gaussian"])),
+                _ => return Err(unknown_type(&f, RFILTERS)),
             };
-            f.check_all_used()?;
+            self.check_used(&f)?;
         }
         let w = node.int("width")?.unwrap_or(768);
         let h = node.int("height")?.unwrap_or(576);
@@ -701,27 +800,19 @@ impl Builder {
         ] {
             node.take(p);
         }
-        node.check_all_used()?;
+        self.check_used(node)?;
         Ok((UVec2::new(w as u32, h as u32), filter))
     }
 
     fn sampler(&self, node: &Node) -> Result<Sampler> {
         self.check_children(node, &[])?;
-        let kind = match node.type_name.as_deref() {
+        let kind = match self
+            .plugin(node, SAMPLERS, Fallback::Use("independent"))?
+            .as_deref()
+        {
             Some("independent") => "independent",
             Some("stratified" | "multijitter" | "ldsampler" | "orthogonal") => "sobol",
-            _ => {
-                return Err(unknown_type(
-                    node,
-                    &[
-                        "independent",
-                        "stratified",
-                        "multijitter",
-                        "ldsampler",
-                        "orthogonal",
-                    ],
-                ))
-            }
+            _ => return Err(unknown_type(node, SAMPLERS)),
         };
         let count = node.int("sample_count")?.unwrap_or(4);
         if !(1..=1 << 24).contains(&count) {
@@ -808,21 +899,7 @@ impl Builder {
                 Arc::new(Shape::Cylinder(Cylinder { caps: false })),
                 cylinder_placement(node)?,
             ),
-            _ => {
-                return Err(unknown_type(
-                    node,
-                    &[
-                        "obj",
-                        "ply",
-                        "sphere",
-                        "rectangle",
-                        "disk",
-                        "cube",
-                        "cylinder",
-                        "csg",
-                    ],
-                ))
-            }
+            _ => return Err(unknown_type(node, SHAPES)),
         };
         if !matches!(node.type_name.as_deref(), Some("obj" | "ply" | "csg")) {
             node.bool_or("flip_normals", false)?;
@@ -860,6 +937,52 @@ impl Builder {
         });
         node.check_all_used()?;
         Ok(instance)
+    }
+
+    /// A `<shape type="instance">`: the shapes of the `shapegroup` it refers to, each
+    /// placed by its own `to_world` and then the instance's. Meshes are loaded once and
+    /// shared by every instance of their group.
+    fn instance(&mut self, node: &Rc<Node>) -> Result<Vec<Instance>> {
+        self.check_children(node, &["transform", "shape"])?;
+        let to_world = self.to_world(node)?;
+        let groups: Vec<Rc<Node>> = self
+            .children(node)?
+            .into_iter()
+            .map(|(_, c)| c)
+            .filter(|c| c.tag == "shape")
+            .collect();
+        let [group] = groups.as_slice() else {
+            return Err(node.error("an instance needs exactly one <ref> to a shapegroup"));
+        };
+        if group.type_name.as_deref() != Some("shapegroup") {
+            return Err(node.error(format!(
+                "an instance must refer to a shapegroup, not to {}",
+                group.describe()
+            )));
+        }
+        self.check_children(group, &["shape"])?;
+        let mut placed = Vec::new();
+        for (_, c) in self.children(group)? {
+            match self.plugin(&c, SHAPES, Fallback::Skip)?.as_deref() {
+                None => {}
+                Some("shapegroup" | "instance") => {
+                    return Err(c.error("shape groups cannot be nested"));
+                }
+                Some(_) => {
+                    let shape = self.shape(&c)?;
+                    let mut instance = Instance::new(
+                        shape.shape.clone(),
+                        shape.render_from_object.then(&to_world),
+                    );
+                    instance.material = shape.material;
+                    instance.emission = shape.emission;
+                    placed.push(instance);
+                }
+            }
+        }
+        self.check_used(group)?;
+        self.check_used(node)?;
+        Ok(placed)
     }
 
     /// The tree of a `<shape type="csg">` (a lightpath extension of the format: Mitsuba
@@ -964,9 +1087,13 @@ impl Builder {
             .transformed(&object.then(&to_world)))
     }
 
-    fn emitter(&mut self, node: &Node) -> Result<Light> {
+    /// A light, or `None` when `--lenient` leaves an unsupported emitter out.
+    fn emitter(&mut self, node: &Node) -> Result<Option<Light>> {
+        let Some(kind) = self.plugin(node, EMITTERS, Fallback::Skip)? else {
+            return Ok(None);
+        };
         let to_world = self.to_world(node)?;
-        let light = match node.type_name.as_deref() {
+        let light = match Some(kind.as_str()) {
             Some("point") => {
                 self.check_children(node, &["transform"])?;
                 let position = node
@@ -1039,15 +1166,10 @@ impl Builder {
                 Light::Environment(Environment::new(texture, swap.then(&to_world)))
             }
             Some("area") => return Err(node.error("an area emitter must be attached to a <shape>")),
-            _ => {
-                return Err(unknown_type(
-                    node,
-                    &["area", "point", "spot", "directional", "constant", "envmap"],
-                ))
-            }
+            _ => return Err(unknown_type(node, EMITTERS)),
         };
-        node.check_all_used()?;
-        Ok(light)
+        self.check_used(node)?;
+        Ok(Some(light))
     }
 
     fn image(&mut self, node: &Node, path: &Path, raw: bool) -> Result<Arc<crate::film::Image>> {
@@ -1089,7 +1211,9 @@ impl Builder {
         if let Some(t) = self.textures.get(&key) {
             return Ok(t.clone());
         }
-        let texture = match node.type_name.as_deref() {
+        let kind = self.plugin(node, TEXTURES, Fallback::Replace("a constant 0.5"))?;
+        let texture = match kind.as_deref() {
+            None => Texture::Constant(Vec3::splat(0.5)),
             Some("bitmap") => {
                 self.check_children(node, &["transform"])?;
                 let file = node
@@ -1155,9 +1279,11 @@ impl Builder {
                     color1: node.vec3("color1")?.unwrap_or(Vec3::splat(0.2)),
                 })
             }
-            _ => return Err(unknown_type(node, &["bitmap", "checkerboard"])),
+            _ => return Err(unknown_type(node, TEXTURES)),
         };
-        node.check_all_used()?;
+        if kind.is_some() {
+            self.check_used(node)?;
+        }
         let t = Arc::new(texture);
         self.textures.insert(key, t.clone());
         Ok(t)
@@ -1223,7 +1349,11 @@ impl Builder {
         if let Some(m) = self.materials.get(&key) {
             return Ok(m.clone());
         }
-        let material = match node.type_name.as_deref() {
+        let kind = self.plugin(node, BSDFS, Fallback::Replace("a diffuse 0.5"))?;
+        let material = match kind.as_deref() {
+            None => Material::Diffuse(Diffuse {
+                albedo: Arc::new(Texture::Constant(Vec3::splat(0.5))),
+            }),
             Some("diffuse") => {
                 self.check_children(node, &["texture"])?;
                 Material::Diffuse(Diffuse {
@@ -1367,27 +1497,11 @@ impl Builder {
                     inner: self.material(&inner[0])?,
                 })
             }
-            _ => {
-                return Err(unknown_type(
-                    node,
-                    &[
-                        "diffuse",
-                        "conductor",
-                        "roughconductor",
-                        "dielectric",
-                        "roughdielectric",
-                        "thindielectric",
-                        "plastic",
-                        "roughplastic",
-                        "principled",
-                        "twosided",
-                        "blendbsdf",
-                        "normalmap",
-                    ],
-                ))
-            }
+            _ => return Err(unknown_type(node, BSDFS)),
         };
-        node.check_all_used()?;
+        if kind.is_some() {
+            self.check_used(node)?;
+        }
         let m = Arc::new(material);
         self.materials.insert(key, m.clone());
         Ok(m)
@@ -1517,6 +1631,95 @@ mod tests {
 {body}
 </scene>"#
         )
+    }
+
+    /// A shape group placed twice: each instance composes the group shape's own
+    /// `to_world` with the instance's, and both share the group's shapes.
+    #[test]
+    fn shapegroup_instances_compose_transforms() {
+        let loaded = load(
+            &scene_with(
+                r#"<shape type="shapegroup" id="pair">
+                    <shape type="sphere"><float name="radius" value="0.5"/>
+                        <point name="center" x="1" y="0" z="0"/></shape>
+                    <shape type="rectangle"><transform name="to_world"><scale value="0.25"/></transform>
+                        <bsdf type="diffuse"><rgb name="reflectance" value="1,0,0"/></bsdf></shape>
+                </shape>
+                <shape type="instance"><ref id="pair"/>
+                    <transform name="to_world"><translate z="5"/></transform></shape>
+                <shape type="instance"><ref id="pair"/>
+                    <transform name="to_world"><rotate y="1" angle="90"/><translate z="10"/></transform></shape>"#,
+            ),
+            &[],
+        )
+        .unwrap();
+        let inst = &loaded.scene.instances;
+        assert_eq!(inst.len(), 4);
+        assert!(Arc::ptr_eq(
+            &inst[1].material.clone().unwrap(),
+            &inst[3].material.clone().unwrap()
+        ));
+        // First instance: the rectangle at z = 5 facing the camera; the sphere at x = 1.
+        let hit = loaded
+            .scene
+            .intersect(&crate::math::Ray::new(Vec3::ZERO, Vec3::Z))
+            .unwrap();
+        assert!((hit.t - 5.0).abs() < 1e-4, "{}", hit.t);
+        let b = inst[0].bounds;
+        assert!(
+            (b.min - Vec3::new(0.5, -0.5, 4.5)).abs().max_element() < 1e-4,
+            "{b:?}"
+        );
+        // Second: rotated 90° about y, the sphere's centre (1, 0, 0) goes to (0, 0, -1),
+        // then up by 10: (0, 0, 9).
+        let b = inst[2].bounds;
+        assert!(
+            (b.min - Vec3::new(-0.5, -0.5, 8.5)).abs().max_element() < 1e-4,
+            "{b:?}"
+        );
+        let err = load(
+            &scene_with(
+                r#"<shape type="sphere" id="s"/><shape type="instance"><ref id="s"/></shape>"#,
+            ),
+            &[],
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(err.contains("must refer to a shapegroup"), "{err}");
+    }
+
+    /// Unsupported plugins and parameters are errors naming the plugin and line; with
+    /// `lenient` they are left out or replaced by the documented fallbacks.
+    #[test]
+    fn lenient_turns_unsupported_plugins_into_fallbacks() {
+        let xml = scene_with(
+            r#"<bsdf type="hair" id="h"><float name="eumelanin" value="1"/></bsdf>
+               <shape type="sphere"><ref id="h"/><transform name="to_world"><translate z="4"/></transform></shape>
+               <shape type="bezier"/>
+               <emitter type="projector"/>
+               <emitter type="constant"><rgb name="radiance" value="1"/><float name="glow" value="2"/></emitter>
+               <shape type="rectangle"><bsdf type="diffuse"><texture name="reflectance" type="noise"/></bsdf>
+                   <transform name="to_world"><translate z="9"/></transform></shape>"#,
+        );
+        let err = load(&xml, &[]).unwrap_err().to_string();
+        assert!(err.contains("m.xml:") && err.contains("`hair`"), "{err}");
+        let options = LoadOptions {
+            lenient: true,
+            ..Default::default()
+        };
+        let loaded = crate::io::load_scene_str(&xml, Path::new("m.xml"), &options).unwrap();
+        // The bezier curve and the projector are left out.
+        assert_eq!(loaded.scene.instances.len(), 2);
+        assert_eq!(loaded.scene.lights.len(), 1);
+        // The hair BSDF is a diffuse 0.5, the noise texture a constant 0.5.
+        for i in &loaded.scene.instances {
+            match i.material.as_deref() {
+                Some(Material::Diffuse(d)) => {
+                    assert_eq!(d.albedo.eval(glam::Vec2::ZERO), Vec3::splat(0.5))
+                }
+                m => panic!("{m:?}"),
+            }
+        }
     }
 
     /// `<shape type="csg">` (our extension): a sphere minus a cube, the cube in its own

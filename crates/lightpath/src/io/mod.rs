@@ -43,6 +43,9 @@ pub struct LoadOptions {
     pub accel: Option<AccelKind>,
     /// `$name` substitutions (`-D name=value`).
     pub defines: Vec<(String, String)>,
+    /// Mitsuba scenes: an unsupported plugin or parameter is a warning (logged with the
+    /// file and line) and gets the documented fallback, instead of an error.
+    pub lenient: bool,
 }
 
 /// Loads a scene file; the dialect is recognised from its root element.

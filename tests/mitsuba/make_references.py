@@ -1,0 +1,54 @@
+"""Makes the textures of the Mitsuba comparison scenes and their Mitsuba 3 references.
+
+    python3 tests/mitsuba/make_references.py textures        # needs numpy + pillow
+    python3 tests/mitsuba/make_references.py references VENV # needs a venv with mitsuba 3
+
+The references are rendered with Mitsuba 3.9.1 (scalar_rgb) through
+../shared/tools/mitsuba-ref/render.py at SPP samples per pixel; the test
+(crates/lightpath/tests/mitsuba_reference.rs) renders the same files with lightpath and
+compares them by relMSE (eps 0.01, as compare.py defines it) and mean brightness.
+"""
+
+import pathlib
+import subprocess
+import sys
+
+HERE = pathlib.Path(__file__).resolve().parent
+SCENES = ["box", "materials", "lights"]
+SPP = 16384
+
+
+def textures():
+    import numpy as np
+    from PIL import Image
+
+    # Diagonal colour stripes, 32x32, sRGB.
+    y, x = np.mgrid[0:32, 0:32]
+    band = ((x + y) // 4) % 3
+    colours = np.array([[220, 60, 40], [240, 220, 200], [40, 90, 200]], dtype=np.uint8)
+    Image.fromarray(colours[band]).save(HERE / "stripes.png")
+
+    # A tangent-space normal map of round bumps, 32x32, raw (linear) values.
+    u = (np.arange(32) + 0.5) / 32
+    uu, vv = np.meshgrid(u, u)
+    fx, fy = np.cos(uu * 8 * np.pi), np.cos(vv * 8 * np.pi)
+    n = np.stack([0.5 * fx, 0.5 * fy, np.ones_like(fx)], axis=-1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    Image.fromarray(np.round((n * 0.5 + 0.5) * 255).astype(np.uint8)).save(HERE / "bumps.png")
+
+
+def references(venv):
+    render = HERE.parents[1] / ".." / "shared" / "tools" / "mitsuba-ref" / "render.py"
+    for scene in SCENES:
+        subprocess.run(
+            [f"{venv}/bin/python", str(render), str(HERE / f"{scene}.xml"),
+             "--spp", str(SPP), "-o", str(HERE / f"{scene}_mitsuba.exr")],
+            check=True,
+        )
+
+
+if __name__ == "__main__":
+    if sys.argv[1] == "textures":
+        textures()
+    else:
+        references(sys.argv[2])
