@@ -221,6 +221,10 @@ fn camera_lights_and_materials() {
         // A flat normal map leaves the shading frame alone.
         assert!((nm.frame(uv).n - Vec3::Z).length() < 0.01);
 
+        // Both cubes use material 0: one material, built once.
+        let (m0, m1) = (&scene.instances[0].material, &scene.instances[1].material);
+        assert!(Arc::ptr_eq(m0.as_ref().unwrap(), m1.as_ref().unwrap()));
+
         // The lamp: emissive factor × strength.
         let e = scene.instances[2].emission.as_ref().unwrap();
         assert!((e.radiance.eval(uv) - Vec3::new(4.0, 3.2, 2.0)).length() < 1e-5);

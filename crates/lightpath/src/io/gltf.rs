@@ -107,6 +107,7 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<LoadedScene> {
         doc: &gltf.document,
         buffers: Vec::new(),
         images: HashMap::new(),
+        textures: HashMap::new(),
         materials: HashMap::new(),
         shapes: HashMap::new(),
         options: options.clone(),
@@ -148,6 +149,49 @@ fn parse_error(path: &Path, error: ::gltf::Error) -> Error {
     }
 }
 
+/// [`Texel::key`]: the variant and the bits of its numbers.
+type TexelKey = (u8, [u32; 3]);
+
+/// How a texture's texels derive from its image's colours `c`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Texel {
+    /// `c × factor` (base colour, emission; sRGB images).
+    Scaled(Vec3),
+    /// Channel `i` of `c` times a factor, as grey (metallic: B, roughness: G; linear).
+    Channel(usize, f32),
+    /// A tangent-space normal with its x and y scaled by a factor (linear).
+    Normal(f32),
+}
+
+impl Texel {
+    fn space(self) -> ColorSpace {
+        match self {
+            Texel::Scaled(_) => ColorSpace::Srgb,
+            Texel::Channel(..) | Texel::Normal(_) => ColorSpace::Linear,
+        }
+    }
+
+    fn apply(self, c: Vec3) -> Vec3 {
+        match self {
+            Texel::Scaled(factor) => c * factor,
+            Texel::Channel(i, factor) => Vec3::splat(c[i] * factor),
+            Texel::Normal(scale) => {
+                let n = (2.0 * c - Vec3::ONE) * Vec3::new(scale, scale, 1.0);
+                (n + Vec3::ONE) * 0.5
+            }
+        }
+    }
+
+    /// A hashable key for caching.
+    fn key(self) -> TexelKey {
+        match self {
+            Texel::Scaled(f) => (0, f.to_array().map(f32::to_bits)),
+            Texel::Channel(i, f) => (1, [i as u32, f.to_bits(), 0]),
+            Texel::Normal(f) => (2, [f.to_bits(), 0, 0]),
+        }
+    }
+}
+
 /// How an image's 8/16-bit values are decoded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 enum ColorSpace {
@@ -162,6 +206,8 @@ struct Loader<'a> {
     buffers: Vec<Vec<u8>>,
     /// Decoded images by (image index, colour space).
     images: HashMap<(usize, ColorSpace), Arc<Image>>,
+    /// Textures by (texture index, texel derivation), shared by the materials using them.
+    textures: HashMap<(usize, TexelKey), Arc<Texture>>,
     /// Materials and emissions by material index (`None`: the default material).
     materials: HashMap<Option<usize>, (Arc<Material>, Option<Emission>)>,
     /// Shapes by (mesh, primitive); `None` for skipped primitives.
@@ -409,14 +455,17 @@ impl<'a> Loader<'a> {
         Ok(decoded)
     }
 
-    /// A texture whose texels are `f(texel)` of a glTF texture's image.
+    /// A texture whose texels derive from a glTF texture's image by `texel`, built once.
     fn texture(
         &mut self,
         info_texture: ::gltf::Texture,
         tex_coord: u32,
-        space: ColorSpace,
-        f: impl Fn(Vec3) -> Vec3,
+        texel: Texel,
     ) -> Result<Arc<Texture>> {
+        let key = (info_texture.index(), texel.key());
+        if let Some(t) = self.textures.get(&key) {
+            return Ok(t.clone());
+        }
         if tex_coord != 0 {
             log::warn!(
                 "{}: texture {} uses TEXCOORD_{tex_coord}; TEXCOORD_0 is used instead",
@@ -424,10 +473,10 @@ impl<'a> Loader<'a> {
                 info_texture.index()
             );
         }
-        let source = self.image(info_texture.source(), space)?;
+        let source = self.image(info_texture.source(), texel.space())?;
         let mut image = (*source).clone();
         for p in &mut image.pixels {
-            *p = f(*p);
+            *p = texel.apply(*p);
         }
         let sampler = info_texture.sampler();
         use ::gltf::texture::{MagFilter, WrappingMode};
@@ -439,12 +488,14 @@ impl<'a> Loader<'a> {
             Some(MagFilter::Nearest) => FilterMode::Nearest,
             _ => FilterMode::Bilinear,
         };
-        Ok(Arc::new(Texture::Image(ImageTexture {
+        let texture = Arc::new(Texture::Image(ImageTexture {
             image: Arc::new(image),
             border,
             filter,
             exposure: 1.0,
-        })))
+        }));
+        self.textures.insert(key, texture.clone());
+        Ok(texture)
     }
 
     /// The material (and emission) of a glTF material, built once.
@@ -455,22 +506,22 @@ impl<'a> Loader<'a> {
         let pbr = m.pbr_metallic_roughness();
         let factor = Vec4::from_array(pbr.base_color_factor()).truncate();
         let base_color = match pbr.base_color_texture() {
-            Some(info) => {
-                self.texture(info.texture(), info.tex_coord(), ColorSpace::Srgb, |c| {
-                    c * factor
-                })?
-            }
+            Some(info) => self.texture(info.texture(), info.tex_coord(), Texel::Scaled(factor))?,
             None => Arc::new(Texture::Constant(factor)),
         };
         let (metallic_factor, roughness_factor) = (pbr.metallic_factor(), pbr.roughness_factor());
         let (metallic, roughness) = match pbr.metallic_roughness_texture() {
             Some(info) => (
-                self.texture(info.texture(), info.tex_coord(), ColorSpace::Linear, |c| {
-                    Vec3::splat(c.z * metallic_factor)
-                })?,
-                self.texture(info.texture(), info.tex_coord(), ColorSpace::Linear, |c| {
-                    Vec3::splat(c.y * roughness_factor)
-                })?,
+                self.texture(
+                    info.texture(),
+                    info.tex_coord(),
+                    Texel::Channel(2, metallic_factor),
+                )?,
+                self.texture(
+                    info.texture(),
+                    info.tex_coord(),
+                    Texel::Channel(1, roughness_factor),
+                )?,
             ),
             None => (
                 Arc::new(Texture::Constant(Vec3::splat(metallic_factor))),
@@ -484,16 +535,8 @@ impl<'a> Loader<'a> {
             specular: Arc::new(Texture::Constant(Vec3::splat(0.5))),
         }));
         if let Some(normal) = m.normal_texture() {
-            let scale = normal.scale();
-            let normal = self.texture(
-                normal.texture(),
-                normal.tex_coord(),
-                ColorSpace::Linear,
-                |c| {
-                    let n = (2.0 * c - Vec3::ONE) * Vec3::new(scale, scale, 1.0);
-                    (n + Vec3::ONE) * 0.5
-                },
-            )?;
+            let texel = Texel::Normal(normal.scale());
+            let normal = self.texture(normal.texture(), normal.tex_coord(), texel)?;
             material = Arc::new(Material::NormalMap(NormalMap {
                 normal,
                 inner: material,
@@ -504,9 +547,7 @@ impl<'a> Loader<'a> {
         let emission = if emissive.max_element() > 0.0 {
             let radiance = match m.emissive_texture() {
                 Some(info) => {
-                    self.texture(info.texture(), info.tex_coord(), ColorSpace::Srgb, |c| {
-                        c * emissive
-                    })?
+                    self.texture(info.texture(), info.tex_coord(), Texel::Scaled(emissive))?
                 }
                 None => Arc::new(Texture::Constant(emissive)),
             };
@@ -575,10 +616,7 @@ impl<'a> Loader<'a> {
             Dimensions::Vec3,
             &[DataType::F32],
         )?;
-        let positions: Vec<Vec3> = p
-            .chunks_exact(3)
-            .map(|c| Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32))
-            .collect();
+        let positions = vec3s(&p);
         if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
             return Err(self.error(format!(
                 "{what}: POSITION {i} is not finite ({:?})",
@@ -594,9 +632,7 @@ impl<'a> Loader<'a> {
                     Dimensions::Vec3,
                     &[DataType::F32],
                 )?;
-                v.chunks_exact(3)
-                    .map(|c| Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32))
-                    .collect()
+                vec3s(&v)
             }
             None => Vec::new(),
         };
@@ -830,6 +866,14 @@ impl<'a> Loader<'a> {
             }
         }
     }
+}
+
+/// Rows of three components as vectors.
+fn vec3s(values: &[f64]) -> Vec<Vec3> {
+    values
+        .chunks_exact(3)
+        .map(|c| Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32))
+        .collect()
 }
 
 /// A node's local matrix.
