@@ -9,7 +9,8 @@ use std::time::Instant;
 
 #[derive(clap::Args)]
 pub struct InfoArgs {
-    /// Scene file (lightwave XML). Without it, the built-in default scene.
+    /// Scene file: lightwave or Mitsuba 3 XML, or glTF 2.0 (.gltf, .glb).
+    /// Without it, the built-in default scene.
     pub scene: Option<PathBuf>,
     #[command(flatten)]
     pub options: RenderOptions,

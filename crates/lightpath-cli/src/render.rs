@@ -18,7 +18,8 @@ use std::time::{Duration, Instant};
 
 #[derive(clap::Args)]
 pub struct RenderArgs {
-    /// Scene file (lightwave XML). Without it, renders the built-in default scene.
+    /// Scene file: lightwave or Mitsuba 3 XML, or glTF 2.0 (.gltf, .glb).
+    /// Without it, renders the built-in default scene.
     pub scene: Option<PathBuf>,
     /// Output image; the extension picks the format (.png, tone mapped, or .exr, linear).
     #[arg(short, long, default_value = "render.png")]

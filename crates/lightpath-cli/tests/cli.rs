@@ -165,6 +165,45 @@ fn test_command_fails_on_a_wrong_image() {
 }
 
 #[test]
+fn gltf_scenes_render() {
+    let dir = temp_dir("gltf");
+    for scene in ["hierarchy.gltf", "hierarchy.glb", "defaults.gltf"] {
+        let path = repo_root().join("tests/gltf").join(scene);
+        let out = lightpath(
+            &[
+                "render",
+                path.to_str().unwrap(),
+                "-o",
+                "x.png",
+                "--spp",
+                "1",
+                "-q",
+            ],
+            &dir,
+        );
+        assert!(
+            out.status.success(),
+            "{scene}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let png = std::fs::read(dir.join("x.png")).unwrap();
+        assert_eq!(&png[1..4], b"PNG");
+        std::fs::remove_file(dir.join("x.png")).unwrap();
+    }
+    // A broken file: an error naming it and its line, no image.
+    std::fs::write(
+        dir.join("broken.gltf"),
+        "{\n  \"asset\": {\"version\": \"2.0\"},\n  oops\n}",
+    )
+    .unwrap();
+    let out = lightpath(&["render", "broken.gltf", "-o", "x.png"], &dir);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("broken.gltf:3:"), "{err}");
+    assert!(!dir.join("x.png").exists());
+}
+
+#[test]
 fn default_scene_renders_png_and_exr() {
     let dir = temp_dir("default");
     let out = lightpath(&["render", "--spp", "1", "--quiet"], &dir);

@@ -230,6 +230,18 @@ fn read_with_image_crate(path: &Path, transfer: Transfer) -> Result<Image> {
         .with_guessed_format()
         .map_err(|e| Error::io(path, e))?;
     let decoded = reader.decode().map_err(|e| image_crate_error(path, e))?;
+    Ok(from_decoded(&decoded, transfer))
+}
+
+/// Decodes an encoded image (PNG, JPEG, HDR; the format is guessed from the content)
+/// held in memory, as embedded images in scene files are; the error says why it cannot.
+pub fn read_image_bytes(bytes: &[u8], transfer: Transfer) -> Result<Image, String> {
+    let decoded = image::load_from_memory(bytes).map_err(|e| e.to_string())?;
+    Ok(from_decoded(&decoded, transfer))
+}
+
+/// Linear RGB from a decoded image: float data as is, integer data through `transfer`.
+fn from_decoded(decoded: &image::DynamicImage, transfer: Transfer) -> Image {
     let (width, height) = (decoded.width(), decoded.height());
 
     use image::ColorType;
@@ -257,11 +269,11 @@ fn read_with_image_crate(path: &Path, transfer: Transfer) -> Result<Image> {
             .map(|p| Vec3::from_array(p.0.map(decode)))
             .collect()
     };
-    Ok(Image {
+    Image {
         width,
         height,
         pixels,
-    })
+    }
 }
 
 /// Writes a linear RGB image: `.exr` (f32 RGB, ZIP compression, linear values) or

@@ -1,5 +1,6 @@
 //! Input and output: scene dialects, mesh formats and image formats.
 
+pub mod gltf;
 pub mod image;
 pub mod lightwave;
 pub mod mitsuba;
@@ -48,9 +49,13 @@ pub struct LoadOptions {
     pub lenient: bool,
 }
 
-/// Loads a scene file; the dialect is recognised from its root element.
-/// A root `<scene version="3...">` is a Mitsuba 3 scene; anything else is lightwave.
+/// Loads a scene file. `.gltf` and `.glb` files are glTF 2.0 ([`gltf`]); XML dialects
+/// are recognised from the root element: a root `<scene version="3...">` is a Mitsuba 3
+/// scene, anything else is lightwave.
 pub fn load_scene(path: &Path, options: &LoadOptions) -> Result<LoadedScene> {
+    if self::gltf::is_gltf(path) {
+        return self::gltf::load(path, options);
+    }
     if let Ok(text) = std::fs::read_to_string(path) {
         if mitsuba::is_mitsuba(&text) {
             return mitsuba::load_str(&text, path, options);
