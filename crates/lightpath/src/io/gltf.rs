@@ -48,8 +48,8 @@
 //!   directional light of I lux an irradiance of I, and an emissive surface of
 //!   luminance L (nits) a radiance of L; `color` multiplies all of them. Spot lights
 //!   point down the node's −Z, full inside `innerConeAngle`, dark outside
-//!   `outerConeAngle`, with our smoothstep falloff in between (glTF suggests a squared
-//!   linear ramp in cos θ). `range` is ignored (the inverse-square law applies without
+//!   `outerConeAngle`, with the squared linear ramp in cos θ between that glTF's
+//!   specification suggests. `range` is ignored (the inverse-square law applies without
 //!   a cutoff).
 //! - **Defaults.** Without a camera, a perspective camera (45° vertical field of view,
 //!   640×480) looks at the centre of the scene's bounds from the front (+Z) and a little
@@ -70,7 +70,9 @@ use crate::error::{Error, Location, Result};
 use crate::film::Image;
 use crate::geometry::{MeshData, Shape, TriangleMesh};
 use crate::integrator::{Integrator, PathTracer};
-use crate::light::{DirectionalLight, Emission, Environment, Light, PointLight, SpotLight};
+use crate::light::{
+    DirectionalLight, Emission, Environment, Light, PointLight, SpotLight, SpotProfile,
+};
 use crate::material::{Material, NormalMap, Principled};
 use crate::math::{Bounds3, Transform};
 use crate::sampling::{IndependentSampler, Sampler};
@@ -938,6 +940,7 @@ fn light(l: &::gltf::khr_lights_punctual::Light, world: &Mat4) -> Light {
             intensity,
             cos_falloff_start: inner_cone_angle.min(outer_cone_angle).cos(),
             cos_cutoff: outer_cone_angle.cos(),
+            profile: SpotProfile::SquaredCosine,
         }),
     }
 }
