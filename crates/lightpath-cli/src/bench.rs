@@ -7,6 +7,7 @@
 //! the two outputs compare key by key.
 
 use crate::fsutil;
+use crate::heatmap;
 use crate::rays::read_rays;
 use anyhow::{bail, Result};
 use lightpath::accel::{AccelKind, RayStats};
@@ -25,8 +26,10 @@ pub struct BenchArgs {
     /// `embree-bench gen-rays MESH --outdir DIR`); missing sets are skipped.
     #[arg(long)]
     pub rays: PathBuf,
-    /// Accelerators to measure (repeatable): list, bvh2, bvh4, bvh-course.
-    #[arg(long, default_values_t = vec!["bvh2".to_string(), "bvh4".to_string()])]
+    /// Accelerators to measure (repeatable): list, bvh2, bvh4, bvh-course, grid, octree,
+    /// kdtree, bsp.
+    #[arg(long, default_values_t = vec!["bvh2".to_string(), "bvh4".to_string()],
+          value_parser = crate::names::ACCELS)]
     pub accel: Vec<String>,
     /// Timed passes (after one warm-up).
     #[arg(long, default_value_t = 5)]
@@ -34,6 +37,15 @@ pub struct BenchArgs {
     /// Write the results as JSON.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// Draw the traversal cost (nodes visited + primitives tested) of each primary ray
+    /// as a PNG heat map (viridis, colour bar along the bottom; the maximum is printed).
+    /// With several accelerators, `-NAME` is added to the file stem of each.
+    #[arg(long, value_name = "FILE.png")]
+    pub heatmap: Option<PathBuf>,
+    /// Width of the primary rays' image (embree-bench's `--width`); by default the ray
+    /// count's square root.
+    #[arg(long, value_name = "W")]
+    pub heatmap_width: Option<usize>,
 }
 
 const SETS: [(&str, bool); 4] = [
@@ -124,6 +136,20 @@ pub fn run(args: BenchArgs) -> Result<()> {
         }
         let mesh = mesh.expect("built");
         let bytes = mesh.accel.memory_bytes();
+        if let Some(path) = &args.heatmap {
+            let Some((_, _, rays)) = sets.iter().find(|(set, ..)| *set == "primary") else {
+                bail!(
+                    "--heatmap needs {}",
+                    args.rays.join("primary.rays").display()
+                );
+            };
+            let path = heatmap::path_for(path, name, kinds.len() > 1);
+            let max = heatmap::write(&path, &mesh, rays, args.heatmap_width)?;
+            println!(
+                "{name}: heat map {} (nodes + primitives per primary ray, 0 to {max})",
+                path.display()
+            );
+        }
         let mut traversal = serde_json::Map::new();
         let mut line = [String::new(), String::new()];
         for (variant, threads) in [("st", 1usize), ("mt", all)] {

@@ -6,6 +6,7 @@ mod completions;
 mod default_scene;
 mod duration;
 mod fsutil;
+mod heatmap;
 mod info;
 mod logger;
 mod names;
@@ -94,8 +95,8 @@ pub struct RenderOptions {
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Acceleration structure: list, bvh2, bvh-course (default: the scene dialect's;
-    /// lightwave scenes use bvh-course, the course's BVH).
+    /// Acceleration structure: list, bvh2, bvh4, bvh-course, grid, octree, kdtree, bsp
+    /// (default: the scene dialect's; lightwave scenes use bvh-course, the course's BVH).
     #[arg(long, value_parser = names::ACCELS, value_name = "KIND")]
     pub accel: Option<String>,
     /// Sampler: independent or sobol (default: the scene's).

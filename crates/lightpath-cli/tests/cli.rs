@@ -292,7 +292,16 @@ fn rays_command_traces_ray_files() {
     }
     std::fs::write(dir.join("r.rays"), &rays).unwrap();
     let mut outputs = Vec::new();
-    for accel in ["list", "bvh2", "bvh4", "bvh-course"] {
+    for accel in [
+        "list",
+        "bvh2",
+        "bvh4",
+        "bvh-course",
+        "grid",
+        "octree",
+        "kdtree",
+        "bsp",
+    ] {
         let hits = format!("{accel}.hits");
         let out = lightpath(
             &["rays", "m.obj", "r.rays", &hits, "--accel", accel, "-q"],
@@ -417,4 +426,101 @@ fn bench_command_times_ray_sets() {
     // open side.
     let h = hits("list", "st", "random");
     assert!(h > 0 && h < 500, "{h}");
+}
+
+/// `lightpath bench --heatmap` draws the primary rays' traversal cost: a PNG of the
+/// camera image (square by default) plus its colour bar, one file per accelerator.
+#[test]
+fn bench_heatmap_is_written() {
+    let dir = temp_dir("heatmap");
+    std::fs::write(
+        dir.join("m.obj"),
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n\
+         f 1 2 3 4\nf 5 6 7 8\nf 1 2 6 5\nf 4 3 7 8\n",
+    )
+    .unwrap();
+    // A 24×24 camera looking down -z at the box from above.
+    let mut rays = Vec::new();
+    for k in 0..24 * 24 {
+        let (x, y) = (k % 24, k / 24);
+        let (u, v) = (x as f32 / 24.0 * 2.0 - 0.5, y as f32 / 24.0 * 2.0 - 0.5);
+        for f in [u, v, 3.0, 0.0, 0.0, 0.0, -1.0, f32::INFINITY] {
+            rays.extend_from_slice(&f.to_le_bytes());
+        }
+    }
+    std::fs::write(dir.join("primary.rays"), &rays).unwrap();
+    let png_size = |name: &str| {
+        let bytes = std::fs::read(dir.join(name)).unwrap();
+        assert_eq!(&bytes[1..4], b"PNG");
+        let be = |i: usize| u32::from_be_bytes(bytes[i..i + 4].try_into().unwrap());
+        (be(16), be(20))
+    };
+    let out = lightpath(
+        &[
+            "bench",
+            "m.obj",
+            "--rays",
+            ".",
+            "--accel",
+            "grid",
+            "--reps",
+            "1",
+            "--heatmap",
+            "h.png",
+        ],
+        &dir,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("heat map"));
+    assert_eq!(png_size("h.png"), (24, 24 + 12));
+    let out = lightpath(
+        &[
+            "bench",
+            "m.obj",
+            "--rays",
+            ".",
+            "--accel",
+            "kdtree",
+            "--accel",
+            "bsp",
+            "--reps",
+            "1",
+            "--heatmap",
+            "h.png",
+            "--heatmap-width",
+            "32",
+        ],
+        &dir,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(png_size("h-kdtree.png"), (32, 18 + 12));
+    assert_eq!(png_size("h-bsp.png"), (32, 18 + 12));
+    // A width that does not divide the ray count is an error, and nothing is written.
+    let out = lightpath(
+        &[
+            "bench",
+            "m.obj",
+            "--rays",
+            ".",
+            "--accel",
+            "octree",
+            "--reps",
+            "1",
+            "--heatmap",
+            "bad.png",
+            "--heatmap-width",
+            "25",
+        ],
+        &dir,
+    );
+    assert!(!out.status.success());
+    assert!(!dir.join("bad.png").exists());
 }

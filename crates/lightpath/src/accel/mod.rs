@@ -6,12 +6,23 @@
 //! finds a closer hit; for the any-hit (shadow) query it answers whether primitive `i`
 //! blocks the ray, and traversal stops at the first `true`.
 
+pub mod bsp;
 pub mod bvh;
+mod cover;
+pub mod grid;
+pub mod kdtree;
 mod list;
+pub mod octree;
+#[cfg(test)]
+mod testing;
 mod wide_bvh;
 
+pub use bsp::{Bsp, BspNode};
 pub use bvh::{Bvh, BvhNode, BvhStats};
+pub use grid::Grid;
+pub use kdtree::{KdNode, KdTree};
 pub use list::ListAccel;
+pub use octree::{Octree, OctreeNode};
 pub use wide_bvh::{Bvh4, Bvh4Node};
 
 use crate::math::{Bounds3, Ray};
@@ -42,10 +53,28 @@ pub enum AccelKind {
     BvhCourse,
     /// The binary SAH tree collapsed into 4-wide nodes tested with SIMD.
     Bvh4,
+    /// Uniform grid traversed by 3D-DDA, with per-ray mailboxing.
+    Grid,
+    /// Octree split at node centres, traversed front to back.
+    Octree,
+    /// kd-tree with pbrt-v3's SAH build.
+    KdTree,
+    /// BSP tree whose split planes may have any orientation.
+    Bsp,
 }
 
 impl AccelKind {
-    pub const NAMES: &'static [&'static str] = &["list", "bvh2", "bvh", "bvh4", "bvh-course"];
+    pub const NAMES: &'static [&'static str] = &[
+        "list",
+        "bvh2",
+        "bvh",
+        "bvh4",
+        "bvh-course",
+        "grid",
+        "octree",
+        "kdtree",
+        "bsp",
+    ];
 
     pub fn from_name(name: &str) -> Option<AccelKind> {
         match name {
@@ -53,6 +82,10 @@ impl AccelKind {
             "bvh" | "bvh2" => Some(AccelKind::Bvh2),
             "bvh-course" => Some(AccelKind::BvhCourse),
             "bvh4" => Some(AccelKind::Bvh4),
+            "grid" => Some(AccelKind::Grid),
+            "octree" => Some(AccelKind::Octree),
+            "kdtree" => Some(AccelKind::KdTree),
+            "bsp" => Some(AccelKind::Bsp),
             _ => None,
         }
     }
@@ -64,6 +97,10 @@ pub enum Accel {
     List(ListAccel),
     Bvh(Bvh),
     Bvh4(Bvh4),
+    Grid(Grid),
+    Octree(Octree),
+    KdTree(KdTree),
+    Bsp(Bsp),
 }
 
 impl Accel {
@@ -74,6 +111,10 @@ impl Accel {
             AccelKind::Bvh2 => Accel::Bvh(Bvh::build(bounds, &bvh::BuildSettings::default())),
             AccelKind::BvhCourse => Accel::Bvh(Bvh::build(bounds, &bvh::BuildSettings::COURSE)),
             AccelKind::Bvh4 => Accel::Bvh4(Bvh4::build(bounds, &bvh::BuildSettings::default())),
+            AccelKind::Grid => Accel::Grid(Grid::build(bounds)),
+            AccelKind::Octree => Accel::Octree(Octree::build(bounds)),
+            AccelKind::KdTree => Accel::KdTree(KdTree::build(bounds)),
+            AccelKind::Bsp => Accel::Bsp(Bsp::build(bounds)),
         }
     }
 
@@ -83,6 +124,10 @@ impl Accel {
             Accel::List(a) => a.bounds(),
             Accel::Bvh(a) => a.bounds(),
             Accel::Bvh4(a) => a.bounds(),
+            Accel::Grid(a) => a.bounds(),
+            Accel::Octree(a) => a.bounds(),
+            Accel::KdTree(a) => a.bounds(),
+            Accel::Bsp(a) => a.bounds(),
         }
     }
 
@@ -99,6 +144,10 @@ impl Accel {
             Accel::List(a) => a.intersect(ray, stats, hit),
             Accel::Bvh(a) => a.intersect(ray, stats, hit),
             Accel::Bvh4(a) => a.intersect(ray, stats, hit),
+            Accel::Grid(a) => a.intersect(ray, stats, hit),
+            Accel::Octree(a) => a.intersect(ray, stats, hit),
+            Accel::KdTree(a) => a.intersect(ray, stats, hit),
+            Accel::Bsp(a) => a.intersect(ray, stats, hit),
         }
     }
 
@@ -114,6 +163,10 @@ impl Accel {
             Accel::List(a) => a.occluded(ray, stats, blocks),
             Accel::Bvh(a) => a.occluded(ray, stats, blocks),
             Accel::Bvh4(a) => a.occluded(ray, stats, blocks),
+            Accel::Grid(a) => a.occluded(ray, stats, blocks),
+            Accel::Octree(a) => a.occluded(ray, stats, blocks),
+            Accel::KdTree(a) => a.occluded(ray, stats, blocks),
+            Accel::Bsp(a) => a.occluded(ray, stats, blocks),
         }
     }
 
@@ -123,6 +176,10 @@ impl Accel {
             Accel::List(a) => a.memory_bytes(),
             Accel::Bvh(a) => a.memory_bytes(),
             Accel::Bvh4(a) => a.memory_bytes(),
+            Accel::Grid(a) => a.memory_bytes(),
+            Accel::Octree(a) => a.memory_bytes(),
+            Accel::KdTree(a) => a.memory_bytes(),
+            Accel::Bsp(a) => a.memory_bytes(),
         }
     }
 
@@ -132,6 +189,10 @@ impl Accel {
             Accel::List(_) => 0.0,
             Accel::Bvh(a) => a.stats.build_seconds,
             Accel::Bvh4(a) => a.build_seconds,
+            Accel::Grid(a) => a.build_seconds,
+            Accel::Octree(a) => a.build_seconds,
+            Accel::KdTree(a) => a.build_seconds,
+            Accel::Bsp(a) => a.build_seconds,
         }
     }
 
@@ -143,6 +204,51 @@ impl Accel {
             Accel::List(a) => a.cover(max_boxes),
             Accel::Bvh(a) => a.cover(max_boxes),
             Accel::Bvh4(a) => a.cover(max_boxes),
+            Accel::Grid(a) => a.cover(max_boxes),
+            Accel::Octree(a) => a.cover(max_boxes),
+            Accel::KdTree(a) => a.cover(max_boxes),
+            Accel::Bsp(a) => a.cover(max_boxes),
         }
     }
+}
+
+/// Widens a ray distance by a relative 1e-5 (and a tiny absolute amount), so that
+/// rounding in the distances to cell boundaries and split planes never ends a traversal
+/// before a hit that lies just beyond a boundary: the grid, octree, kd-tree and BSP
+/// tree still enter a cell whose entry distance is at most `widen(t_max)`.
+#[inline(always)]
+pub(crate) fn widen(t: f32) -> f32 {
+    t + t.abs() * 1e-5 + f32::MIN_POSITIVE
+}
+
+/// The ray's segment inside `b`: `[entry, exit]` clipped to `[t_min, t_max]`, the exit
+/// widened by `1 + 2γ(3)` against rounding (pbrt's rule). Unlike a plain slab test, a
+/// zero direction component is decided by whether the origin lies in that slab, faces
+/// included, rather than by `0 · ∞`, so a ray running exactly along a face of the box
+/// still enters it.
+#[inline(always)]
+pub(crate) fn clip_ray(b: &Bounds3, ray: &Ray, inv_dir: glam::Vec3) -> Option<(f32, f32)> {
+    if b.is_empty() {
+        return None;
+    }
+    let (mut t0, mut t1) = (ray.t_min, ray.t_max);
+    for a in 0..3 {
+        let o = ray.origin[a];
+        if ray.direction[a] == 0.0 {
+            if o < b.min[a] || o > b.max[a] {
+                return None;
+            }
+            continue;
+        }
+        let near = (b.min[a] - o) * inv_dir[a];
+        let far = (b.max[a] - o) * inv_dir[a];
+        let (near, far) = if near <= far {
+            (near, far)
+        } else {
+            (far, near)
+        };
+        t0 = t0.max(near);
+        t1 = t1.min(far * (1.0 + 2.0 * crate::math::gamma(3)));
+    }
+    (t0 <= t1).then_some((t0, t1))
 }
