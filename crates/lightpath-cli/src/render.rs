@@ -20,7 +20,8 @@ use std::time::{Duration, Instant};
 pub struct RenderArgs {
     /// Scene file (lightwave XML). Without it, renders the built-in default scene.
     pub scene: Option<PathBuf>,
-    /// Output image; the extension picks the format (.png, tone mapped, or .exr, linear).
+    /// Output image; the extension picks the format (.png, tone mapped; .exr or .hdr,
+    /// linear).
     #[arg(short, long, default_value = "render.png")]
     pub output: PathBuf,
     /// Stop after this much rendering time (e.g. 500ms, 2s, 1.5m), at the end of a pass
@@ -60,9 +61,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
     args.options.init_threads()?;
     args.tone.check()?;
     let ext = io::extension(&args.output);
-    if ext != "png" && ext != "exr" {
+    if !matches!(ext.as_str(), "png" | "exr" | "hdr") {
         anyhow::bail!(
-            "{}: unsupported output format `.{ext}` (use .png or .exr)",
+            "{}: unsupported output format `.{ext}` (use .png, .exr or .hdr)",
             args.output.display()
         );
     }

@@ -5,7 +5,7 @@
 //! | extension         | read                                  | write                      |
 //! |-------------------|---------------------------------------|----------------------------|
 //! | `.exr`            | first layer, `R`,`G`,`B` (or `Y`), f16/f32/u32 → f32, linear | RGB f32, ZIP, linear |
-//! | `.hdr`            | Radiance RGBE, linear                 | –                          |
+//! | `.hdr`            | Radiance RGBE, linear                 | RGBE (~1% precision), linear; negative and NaN → 0 |
 //! | `.png`            | 8/16-bit, sRGB-decoded by default     | 8-bit RGB, sRGB-encoded    |
 //! | `.jpg`, `.jpeg`   | 8-bit, sRGB-decoded by default        | –                          |
 //!
@@ -264,19 +264,20 @@ fn read_with_image_crate(path: &Path, transfer: Transfer) -> Result<Image> {
     })
 }
 
-/// Writes a linear RGB image: `.exr` (f32 RGB, ZIP compression, linear values) or
-/// `.png` (8-bit RGB, sRGB-encoded, clamped to [0, 1]).
+/// Writes a linear RGB image: `.exr` (f32 RGB, ZIP compression, linear values),
+/// `.hdr` (Radiance RGBE, linear; negative and NaN values become 0, infinities the
+/// largest RGBE value) or `.png` (8-bit RGB, sRGB-encoded, clamped to [0, 1]).
 ///
 /// The image is written to a temporary file in the target's directory and then
 /// renamed over the target, so a failure never leaves a partial file.
 pub fn write_image(path: &Path, image: &Image) -> Result<()> {
     let kind = match kind_of(path) {
-        Some(kind @ (Kind::Exr | Kind::Png)) => kind,
+        Some(kind @ (Kind::Exr | Kind::Hdr | Kind::Png)) => kind,
         _ => {
             return Err(Error::image(
                 path,
                 format!(
-                    "unsupported image extension {} for writing (expected .exr or .png)",
+                    "unsupported image extension {} for writing (expected .exr, .hdr or .png)",
                     extension_text(path)
                 ),
             ))
@@ -327,6 +328,7 @@ fn write_to(temp: &Path, target: &Path, kind: Kind, image: &Image) -> Result<()>
     let mut writer = BufWriter::new(file);
     match kind {
         Kind::Exr => write_exr(&mut writer, target, image)?,
+        Kind::Hdr => write_hdr(&mut writer, target, image)?,
         _ => write_png(&mut writer, target, image)?,
     }
     writer.flush().map_err(|e| Error::io(target, e))?;
@@ -354,6 +356,20 @@ fn write_exr(writer: &mut BufWriter<File>, target: &Path, image: &Image) -> Resu
         exr::error::Error::Io(e) => Error::io(target, e),
         other => Error::image(target, format!("cannot write EXR: {other}")),
     })
+}
+
+fn write_hdr(writer: &mut BufWriter<File>, target: &Path, image: &Image) -> Result<()> {
+    // RGBE stores no sign: negative and NaN values become 0, as do values below its
+    // smallest exponent; values beyond its largest exponent (and infinities) saturate.
+    let valid = |c: f32| if c >= 1e-37 { c.min(1e38) } else { 0.0 };
+    let pixels: Vec<image::Rgb<f32>> = image
+        .pixels
+        .iter()
+        .map(|p| image::Rgb(p.to_array().map(valid)))
+        .collect();
+    image::codecs::hdr::HdrEncoder::new(writer)
+        .encode(&pixels, image.width as usize, image.height as usize)
+        .map_err(|e| image_crate_error(target, e))
 }
 
 /// Linear value → 8-bit sRGB code (clamped, rounded; NaN → 0).
@@ -629,6 +645,40 @@ mod tests {
                 "{p}"
             );
         }
+    }
+
+    /// `.hdr` written and read back: values within RGBE precision (8-bit mantissa
+    /// sharing the largest channel's exponent: 1/128 of that channel), negatives and NaN
+    /// as 0, infinity saturated; the file replaced atomically.
+    #[test]
+    fn hdr_round_trip_within_rgbe_precision() {
+        let dir = TempDir::new();
+        let path = dir.path("out.hdr");
+        let mut image = test_image(37, 5, 3.0);
+        image.set(0, 0, Vec3::new(1e-3, 250.0, 0.7));
+        image.set(1, 0, Vec3::new(-1.0, f32::NAN, 0.25));
+        image.set(2, 0, Vec3::new(f32::INFINITY, 1.0, 0.0));
+        write_image(&path, &image).expect("write");
+        let back = read_image(&path, None).expect("read");
+        assert_eq!((back.width, back.height), (37, 5));
+        for (i, (a, b)) in image.pixels.iter().zip(&back.pixels).enumerate().skip(3) {
+            let tolerance = a.max_element() / 128.0;
+            assert!((*a - *b).abs().max_element() <= tolerance, "{i}: {a} {b}");
+            // The largest channel itself is within 1%.
+            assert!((a.max_element() - b.max_element()).abs() <= 0.01 * a.max_element());
+        }
+        let p = back.get(0, 0);
+        assert!((p.y - 250.0).abs() <= 250.0 / 128.0, "{p}");
+        assert_eq!(back.get(1, 0).x, 0.0);
+        assert_eq!(back.get(1, 0).y, 0.0);
+        assert!((back.get(1, 0).z - 0.25).abs() < 0.0025);
+        assert!(back.get(2, 0).x > 1e37 && back.get(2, 0).x.is_finite());
+        write_image(&path, &Image::new(2, 2)).expect("overwrite");
+        assert_eq!(
+            read_image(&path, None).expect("read").pixels,
+            vec![Vec3::ZERO; 4]
+        );
+        assert_eq!(dir.files(), vec!["out.hdr"]);
     }
 
     #[test]
