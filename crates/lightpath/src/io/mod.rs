@@ -3,6 +3,7 @@
 pub mod image;
 pub mod lightwave;
 pub mod mitsuba;
+pub mod mtl;
 pub mod obj;
 pub mod ply;
 pub mod props;
@@ -45,9 +46,13 @@ pub struct LoadOptions {
     pub defines: Vec<(String, String)>,
 }
 
-/// Loads a scene file; the dialect is recognised from its root element.
-/// A root `<scene version="3...">` is a Mitsuba 3 scene; anything else is lightwave.
+/// Loads a scene file. A `.obj` file is a scene of its own, with its MTL materials
+/// ([`obj::load_scene`]); otherwise the XML dialect is recognised from the root element:
+/// a root `<scene version="3...">` is a Mitsuba 3 scene; anything else is lightwave.
 pub fn load_scene(path: &Path, options: &LoadOptions) -> Result<LoadedScene> {
+    if extension(path) == "obj" {
+        return obj::load_scene(path, options);
+    }
     if let Ok(text) = std::fs::read_to_string(path) {
         if mitsuba::is_mitsuba(&text) {
             return mitsuba::load_str(&text, path, options);
