@@ -308,6 +308,115 @@ pub fn write_image(path: &Path, image: &Image) -> Result<()> {
     result
 }
 
+/// An extra EXR channel: its full name (`albedo.R`, `depth.Z`, ...) and one value per
+/// pixel, row-major, row 0 at the top.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExrChannel {
+    pub name: String,
+    pub values: Vec<f32>,
+}
+
+/// Writes `image` as an EXR's `R`, `G`, `B` channels (what viewers show by default)
+/// with `extra` channels beside them in the same part (f32, ZIP compression), layered
+/// by name as viewers expect (`albedo.R` is channel `R` of layer `albedo`). Written
+/// atomically like [`write_image`].
+pub fn write_exr_channels(path: &Path, image: &Image, extra: &[ExrChannel]) -> Result<()> {
+    use exr::prelude::{AnyChannel, AnyChannels, Encoding, FlatSamples, Layer, LayerAttributes};
+
+    if kind_of(path) != Some(Kind::Exr) {
+        return Err(Error::image(
+            path,
+            format!(
+                "extra channels need an EXR file, not {}",
+                extension_text(path)
+            ),
+        ));
+    }
+    let count = image.width as usize * image.height as usize;
+    if image.pixels.len() != count || count == 0 {
+        return Err(Error::image(
+            path,
+            format!(
+                "cannot write {} pixels as a {}x{} image",
+                image.pixels.len(),
+                image.width,
+                image.height
+            ),
+        ));
+    }
+    let mut channels: exr::prelude::SmallVec<[AnyChannel<FlatSamples>; 4]> = Default::default();
+    for (c, name) in ["R", "G", "B"].iter().enumerate() {
+        let values = image.pixels.iter().map(|p| p[c]).collect();
+        channels.push(AnyChannel::new(*name, FlatSamples::F32(values)));
+    }
+    for channel in extra {
+        if channel.values.len() != count {
+            return Err(Error::image(
+                path,
+                format!(
+                    "channel `{}` has {} values for {count} pixels",
+                    channel.name,
+                    channel.values.len()
+                ),
+            ));
+        }
+        if channels.iter().any(|c| c.name.to_string() == channel.name) {
+            return Err(Error::image(
+                path,
+                format!("channel `{}` given twice", channel.name),
+            ));
+        }
+        let name = exr::prelude::Text::new_or_none(&channel.name).ok_or_else(|| {
+            Error::image(
+                path,
+                format!("`{}` is not a valid channel name", channel.name),
+            )
+        })?;
+        channels.push(AnyChannel::new(
+            name,
+            FlatSamples::F32(channel.values.clone()),
+        ));
+    }
+    let layer = Layer::new(
+        (image.width as usize, image.height as usize),
+        LayerAttributes::default(),
+        Encoding::SMALL_LOSSLESS,
+        AnyChannels::sort(channels),
+    );
+    let exr_image = exr::prelude::Image::from_layer(layer);
+    write_atomically(path, |writer| {
+        use exr::prelude::traits::*;
+        exr_image.write().to_buffered(writer).map_err(|e| match e {
+            exr::error::Error::Io(e) => Error::io(path, e),
+            other => Error::image(path, format!("cannot write EXR: {other}")),
+        })
+    })
+}
+
+/// Runs `write` on a temporary file next to `path`, then renames it over `path`; on
+/// error the temporary file is removed.
+fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<File>) -> Result<()>,
+) -> Result<()> {
+    let temp = temp_path(path)?;
+    let result = (|| {
+        let file = File::create(&temp).map_err(|e| Error::io(path, e))?;
+        let mut writer = BufWriter::new(file);
+        write(&mut writer)?;
+        writer.flush().map_err(|e| Error::io(path, e))?;
+        let file = writer
+            .into_inner()
+            .map_err(|e| Error::io(path, e.into_error()))?;
+        file.sync_all().map_err(|e| Error::io(path, e))?;
+        std::fs::rename(&temp, path).map_err(|e| Error::io(path, e))
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&temp);
+    }
+    result
+}
+
 /// `.name.tmp-<pid>-<n>` next to `path`.
 fn temp_path(path: &Path) -> Result<PathBuf> {
     static COUNTER: AtomicUsize = AtomicUsize::new(0);
@@ -679,6 +788,47 @@ mod tests {
             vec![Vec3::ZERO; 4]
         );
         assert_eq!(dir.files(), vec!["out.hdr"]);
+    }
+
+    /// Extra channels sit beside R, G, B; the image still reads back as before; bad
+    /// requests are errors that leave nothing behind.
+    #[test]
+    fn exr_with_extra_channels() {
+        let dir = TempDir::new();
+        let path = dir.path("layers.exr");
+        let image = test_image(5, 3, 2.0);
+        let depth = ExrChannel {
+            name: "depth.Z".into(),
+            values: (0..15).map(|i| i as f32).collect(),
+        };
+        write_exr_channels(&path, &image, std::slice::from_ref(&depth)).expect("write");
+        assert_eq!(read_image(&path, None).expect("read"), image);
+        let read = exr::prelude::read_all_flat_layers_from_file(&path).expect("read");
+        let channel = read.layer_data[0]
+            .channel_data
+            .list
+            .iter()
+            .find(|c| c.name.to_string() == "depth.Z")
+            .expect("depth.Z");
+        assert!(
+            matches!(&channel.sample_data, exr::prelude::FlatSamples::F32(v) if *v == depth.values)
+        );
+        let short = ExrChannel {
+            name: "a.Z".into(),
+            values: vec![0.0; 3],
+        };
+        let twice = ExrChannel {
+            name: "G".into(),
+            values: vec![0.0; 15],
+        };
+        for (name, extra) in [("x.exr", &short), ("y.exr", &twice), ("z.png", &depth)] {
+            let result = write_exr_channels(&dir.path(name), &image, std::slice::from_ref(extra));
+            assert!(
+                matches!(result, Err(Error::Image { .. })),
+                "{name}: {result:?}"
+            );
+        }
+        assert_eq!(dir.files(), vec!["layers.exr"]);
     }
 
     #[test]
