@@ -1,5 +1,5 @@
 //! Command-line values that are one of a list of names (`--accel`, `--sampler`,
-//! `--tonemap`): a clap value parser that rejects a typo with the nearest valid name
+//! `--tonemap`, `--aov`): a clap value parser that rejects a typo with the nearest valid name
 //! ("did you mean ...?") and tells shell completions the names.
 
 use clap::builder::{PossibleValue, TypedValueParser};
@@ -16,6 +16,9 @@ pub const ACCELS: NameParser = NameParser {
 };
 pub const SAMPLERS: NameParser = NameParser {
     names: &["independent", "sobol"],
+};
+pub const AOVS: NameParser = NameParser {
+    names: lightpath::integrator::AovLayer::NAMES,
 };
 pub const TONEMAPS: NameParser = NameParser {
     names: lightpath::film::Tonemap::NAMES,

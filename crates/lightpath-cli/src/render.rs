@@ -6,10 +6,11 @@ use crate::stats::Report;
 use crate::summary::{by_kind, bytes, SceneSummary};
 use crate::tev::Tev;
 use crate::tonemap::{self, ToneArgs};
-use crate::{default_scene, duration, progress, RenderOptions};
+use crate::{default_scene, duration, names, progress, RenderOptions};
 use anyhow::{Context, Result};
 use lightpath::film::Image;
-use lightpath::integrator::Integrator;
+use lightpath::integrator::{AovLayer, Integrator};
+use lightpath::io::image::ExrChannel;
 use lightpath::io::{self, LoadedScene};
 use lightpath::render::{RenderControl, RenderStats, Rendered, Renderer};
 use std::ops::ControlFlow;
@@ -21,9 +22,17 @@ pub struct RenderArgs {
     /// Scene file: lightwave or Mitsuba 3 XML, or glTF 2.0 (.gltf, .glb).
     /// Without it, renders the built-in default scene.
     pub scene: Option<PathBuf>,
-    /// Output image; the extension picks the format (.png, tone mapped, or .exr, linear).
+    /// Output image; the extension picks the format (.png, tone mapped; .exr or .hdr,
+    /// linear).
     #[arg(short, long, default_value = "render.png")]
     pub output: PathBuf,
+    /// Extra layers to write into the EXR output beside the image, from the first hit of
+    /// each camera sample, averaged like the image: albedo (albedo.R/G/B: the material's
+    /// colour), normal (normal.X/Y/Z: shading normal in render space), depth (depth.Z:
+    /// distance along the camera ray, averaged over the samples that hit, +inf where none
+    /// does). Comma-separated; needs an .exr output.
+    #[arg(long, value_parser = names::AOVS, value_delimiter = ',', value_name = "LAYERS")]
+    pub aov: Vec<String>,
     /// Stop after this much rendering time (e.g. 500ms, 2s, 1.5m), at the end of a pass
     /// so every pixel has the same number of samples. Without --spp, samples are
     /// unlimited.
@@ -61,12 +70,19 @@ pub fn run(args: RenderArgs) -> Result<()> {
     args.options.init_threads()?;
     args.tone.check()?;
     let ext = io::extension(&args.output);
-    if ext != "png" && ext != "exr" {
+    if !matches!(ext.as_str(), "png" | "exr" | "hdr") {
         anyhow::bail!(
-            "{}: unsupported output format `.{ext}` (use .png or .exr)",
+            "{}: unsupported output format `.{ext}` (use .png, .exr or .hdr)",
             args.output.display()
         );
     }
+    if !args.aov.is_empty() && ext != "exr" {
+        anyhow::bail!(
+            "{}: --aov writes layers into an EXR; use an .exr output",
+            args.output.display()
+        );
+    }
+    let layers = aov_layers(&args.aov);
     if let Some(p) = &args.preview {
         if !tonemap::is_display(p) {
             anyhow::bail!("{}: the preview is a display image; use .png", p.display());
@@ -128,7 +144,13 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let rendered = render_loaded(&loaded, &args.options, args.time, interval, &mut live)?;
 
     let write_start = Instant::now();
-    tonemap::write(&args.output, &rendered.image, &args.tone)?;
+    if layers.is_empty() {
+        tonemap::write(&args.output, &rendered.image, &args.tone)?;
+    } else {
+        let channels = render_aovs(&loaded, &args.options, rendered.spp, &layers)?;
+        io::image::write_exr_channels(&args.output, &rendered.image, &channels)
+            .with_context(|| format!("writing {}", args.output.display()))?;
+    }
     let write_seconds = write_start.elapsed().as_secs_f64();
 
     let stats = rendered.stats;
@@ -170,6 +192,62 @@ pub fn run(args: RenderArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The requested layers, each once, in the order `AovLayer::NAMES` lists them.
+fn aov_layers(names: &[String]) -> Vec<AovLayer> {
+    AovLayer::NAMES
+        .iter()
+        .filter(|n| names.iter().any(|m| m == *n))
+        .filter_map(|n| AovLayer::from_name(n))
+        .collect()
+}
+
+/// The AOV channels of `layers` at `spp` samples per pixel (the image's own camera rays).
+fn render_aovs(
+    loaded: &LoadedScene,
+    options: &RenderOptions,
+    spp: u32,
+    layers: &[AovLayer],
+) -> Result<Vec<ExrChannel>> {
+    let camera = loaded
+        .scene
+        .camera
+        .as_ref()
+        .context("the scene has no camera")?;
+    let sampler = options.sampler(&loaded.sampler)?;
+    let integrator = options.integrator(&loaded.integrator)?;
+    let renderer = Renderer {
+        scene: &loaded.scene,
+        camera,
+        integrator: &integrator,
+        sampler: &sampler,
+    };
+    let aovs = renderer.render_aovs(spp)?;
+    let mut channels = Vec::new();
+    for layer in layers {
+        let names = layer.channels();
+        match layer {
+            AovLayer::Albedo | AovLayer::Normal => {
+                let image = if *layer == AovLayer::Albedo {
+                    &aovs.albedo
+                } else {
+                    &aovs.normal
+                };
+                for (c, name) in names.iter().enumerate() {
+                    channels.push(ExrChannel {
+                        name: name.to_string(),
+                        values: image.pixels.iter().map(|p| p[c]).collect(),
+                    });
+                }
+            }
+            AovLayer::Depth => channels.push(ExrChannel {
+                name: names[0].to_string(),
+                values: aovs.depth.clone(),
+            }),
+        }
+    }
+    Ok(channels)
 }
 
 /// `1.23 M` per second, for the summary line.

@@ -6,11 +6,11 @@ use lightpath::film::{Image, Tonemap};
 use lightpath::io::{self, image::read_image};
 use std::path::{Path, PathBuf};
 
-/// How display outputs (PNG images and previews) are made from linear radiance. EXR
+/// How display outputs (PNG images and previews) are made from linear radiance. EXR/HDR
 /// output stays linear and untouched.
 #[derive(clap::Args, Clone, Debug)]
 pub struct ToneArgs {
-    /// Tone mapping of display outputs (PNG, previews; EXR stays linear):
+    /// Tone mapping of display outputs (PNG, previews; EXR and HDR stay linear):
     /// clamp, reinhard, aces (Narkowicz's fit) or agx (Wrensch's approximation).
     #[arg(long, value_parser = names::TONEMAPS, default_value = "clamp", value_name = "NAME")]
     pub tonemap: String,
@@ -50,7 +50,7 @@ pub fn is_display(path: &Path) -> bool {
 }
 
 /// Writes `image` to `path` (atomically): tone mapped for display formats, linear for
-/// EXR.
+/// EXR and HDR.
 pub fn write(path: &Path, image: &Image, tone: &ToneArgs) -> Result<()> {
     let result = if is_display(path) {
         io::image::write_image(path, &tone.display(image))

@@ -524,3 +524,159 @@ fn bench_heatmap_is_written() {
     assert!(!out.status.success());
     assert!(!dir.join("bad.png").exists());
 }
+
+/// Channel name → values of the first part of an EXR file.
+fn exr_channels(path: &Path) -> std::collections::HashMap<String, Vec<f32>> {
+    let image = exr::prelude::read_all_flat_layers_from_file(path).expect("read EXR");
+    let layer = &image.layer_data[0];
+    layer
+        .channel_data
+        .list
+        .iter()
+        .map(|c| {
+            let values = match &c.sample_data {
+                exr::prelude::FlatSamples::F32(v) => v.clone(),
+                exr::prelude::FlatSamples::F16(v) => v.iter().map(|x| x.to_f32()).collect(),
+                exr::prelude::FlatSamples::U32(v) => v.iter().map(|&x| x as f32).collect(),
+            };
+            (c.name.to_string(), values)
+        })
+        .collect()
+}
+
+/// `--aov albedo,normal,depth` writes the three layers beside R, G, B: an orthographic
+/// camera 3 units in front of a square facing it sees depth 3, the normal towards the
+/// camera and the square's diffuse colour; pixels that miss have depth +inf, albedo 0.
+#[test]
+fn render_writes_aov_layers_into_the_exr() {
+    let dir = temp_dir("aov");
+    let scene = r#"<integrator type="aov" variable="normals">
+<scene>
+  <camera type="orthographic">
+    <integer name="width" value="8"/><integer name="height" value="8"/>
+    <float name="size" value="2"/>
+    <transform><translate z="-3"/></transform>
+  </camera>
+  <instance>
+    <shape type="rectangle"/>
+    <bsdf type="diffuse"><texture name="albedo" type="constant" value="0.2,0.4,0.6"/></bsdf>
+    <transform><scale value="0.5"/><rotate axis="0,1,0" angle="180"/></transform>
+  </instance>
+</scene>
+<sampler type="independent" count="4"/>
+</integrator>
+"#;
+    std::fs::write(dir.join("scene.xml"), scene).unwrap();
+    let out = lightpath(
+        &[
+            "render",
+            "scene.xml",
+            "-o",
+            "out.exr",
+            "--aov",
+            "albedo,normal,depth",
+            "-q",
+        ],
+        &dir,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let channels = exr_channels(&dir.join("out.exr"));
+    let mut names: Vec<&str> = channels.keys().map(|k| k.as_str()).collect();
+    names.sort();
+    assert_eq!(
+        names,
+        [
+            "B", "G", "R", "albedo.B", "albedo.G", "albedo.R", "depth.Z", "normal.X", "normal.Y",
+            "normal.Z"
+        ]
+    );
+    let at = |name: &str, x: usize, y: usize| channels[name][y * 8 + x];
+    for (x, y) in [(3, 3), (3, 4), (4, 4)] {
+        assert!(
+            (at("depth.Z", x, y) - 3.0).abs() < 1e-5,
+            "({x}, {y}): {:?}",
+            channels["depth.Z"]
+        );
+        assert!((at("normal.Z", x, y) + 1.0).abs() < 1e-5);
+        assert!(at("normal.X", x, y).abs() < 1e-5 && at("normal.Y", x, y).abs() < 1e-5);
+        assert!((at("albedo.R", x, y) - 0.2).abs() < 1e-6);
+        assert!((at("albedo.G", x, y) - 0.4).abs() < 1e-6);
+        assert!((at("albedo.B", x, y) - 0.6).abs() < 1e-6);
+        // The image itself is the scene's normals AOV, (n + 1) / 2.
+        assert!((at("B", x, y) - 0.0).abs() < 1e-5 && (at("R", x, y) - 0.5).abs() < 1e-5);
+    }
+    for (x, y) in [(0, 0), (7, 3), (4, 7)] {
+        assert_eq!(at("depth.Z", x, y), f32::INFINITY, "({x}, {y})");
+        assert_eq!(at("albedo.R", x, y), 0.0);
+        assert_eq!(at("normal.Z", x, y), 0.0);
+    }
+    // The image reads back as usual.
+    let out = lightpath(&["compare", "out.exr", "out.exr"], &dir);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+
+    // AOVs need an EXR; unknown layers get a suggestion; nothing is written.
+    let out = lightpath(
+        &["render", "scene.xml", "-o", "out.png", "--aov", "depth"],
+        &dir,
+    );
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains(".exr"));
+    assert!(!dir.join("out.png").exists());
+    let out = lightpath(
+        &["render", "scene.xml", "-o", "b.exr", "--aov", "albdo"],
+        &dir,
+    );
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("albedo"));
+    assert!(!dir.join("b.exr").exists());
+}
+
+/// `.hdr` output, and an OBJ rendered directly as a scene.
+#[test]
+fn render_writes_hdr_and_renders_obj_scenes() {
+    let dir = temp_dir("hdr-obj");
+    let obj = repo_root().join("tests/obj/two_materials.obj");
+    let out = lightpath(
+        &[
+            "render",
+            obj.to_str().unwrap(),
+            "-o",
+            "obj.hdr",
+            "--spp",
+            "1",
+            "-q",
+        ],
+        &dir,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let bytes = std::fs::read(dir.join("obj.hdr")).unwrap();
+    assert!(bytes.starts_with(b"#?RADIANCE"));
+    assert!(String::from_utf8_lossy(&bytes).contains("-Y 480 +X 640"));
+    let out = lightpath(&["compare", "obj.hdr", "obj.hdr"], &dir);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+
+    // A broken OBJ: one line naming file and line, nothing written.
+    std::fs::write(dir.join("bad.obj"), "v 0 0 0\nv 1 0 0\nv 0 x 0\nf 1 2 3\n").unwrap();
+    let out = lightpath(&["render", "bad.obj", "-o", "bad.png"], &dir);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(stderr.contains("bad.obj:3:"), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(!dir.join("bad.png").exists());
+}

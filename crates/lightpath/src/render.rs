@@ -405,6 +405,80 @@ impl Renderer<'_> {
     }
 }
 
+/// First-hit AOVs of every pixel ([`Renderer::render_aovs`]), row-major, row 0 at the
+/// top.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AovImages {
+    /// Mean material colour over the pixel's samples (misses count as 0).
+    pub albedo: Image,
+    /// Mean shading normal over the pixel's samples (misses count as 0; not renormalised).
+    pub normal: Image,
+    /// Mean distance over the samples that hit; +inf where none does.
+    pub depth: Vec<f32>,
+}
+
+impl Renderer<'_> {
+    /// The first-hit AOVs (see [`crate::integrator::AovLayer`]) of samples `0..spp` of
+    /// every pixel: the same camera rays as the image's samples (the sampler is started
+    /// at each pixel sample and gives the film and lens positions first), averaged like
+    /// the image. One intersection per sample; only run when AOVs are asked for.
+    pub fn render_aovs(&self, spp: u32) -> Result<AovImages> {
+        let res = self.camera.resolution();
+        if res.x == 0 || res.y == 0 || spp == 0 {
+            return Err(Error::Invalid(format!(
+                "no AOVs for an image of {}x{} at {spp} samples per pixel",
+                res.x, res.y
+            )));
+        }
+        let rows: Vec<Vec<(Vec3, Vec3, f32)>> = (0..res.y)
+            .into_par_iter()
+            .map(|y| {
+                let mut sampler = self.sampler.clone();
+                (0..res.x)
+                    .map(|x| {
+                        let pixel = UVec2::new(x, y);
+                        let (mut albedo, mut normal) = (Vec3::ZERO, Vec3::ZERO);
+                        let (mut depth, mut hits) = (0.0f64, 0u32);
+                        for index in 0..spp {
+                            sampler.start_pixel_sample(pixel, index);
+                            let film = Vec2::new(x as f32, y as f32) + sampler.next_2d();
+                            let lens = sampler.next_2d();
+                            let Some(ray) = self.camera.generate_ray(&CameraSample { film, lens })
+                            else {
+                                continue;
+                            };
+                            if let Some(hit) = crate::integrator::first_hit(self.scene, &ray) {
+                                albedo += hit.albedo;
+                                normal += hit.normal;
+                                depth += hit.depth as f64;
+                                hits += 1;
+                            }
+                        }
+                        let n = spp as f32;
+                        let depth = if hits > 0 {
+                            (depth / hits as f64) as f32
+                        } else {
+                            f32::INFINITY
+                        };
+                        (albedo / n, normal / n, depth)
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut out = AovImages {
+            albedo: Image::new(res.x, res.y),
+            normal: Image::new(res.x, res.y),
+            depth: Vec::with_capacity(res.x as usize * res.y as usize),
+        };
+        for (i, (a, n, d)) in rows.into_iter().flatten().enumerate() {
+            out.albedo.pixels[i] = a;
+            out.normal.pixels[i] = n;
+            out.depth.push(d);
+        }
+        Ok(out)
+    }
+}
+
 /// A rendered tile: its corner, its pixels' new sums, its statistics.
 type TileResult = (u32, u32, Vec<Vec3>, RenderStats);
 

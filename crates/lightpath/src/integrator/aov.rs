@@ -14,6 +14,9 @@
 //! | `distance`| distance from the ray origin to the hit                            | 0         |
 //! | `uv`      | texture coordinates `(u, v, 0)`                                    | 0         |
 //! | `bvh`     | `(nodes visited, primitives tested, 0) / scale`                    | counts    |
+//!
+//! [`AovLayer`] and [`first_hit`] are the layers `lightpath render --aov` writes into
+//! the EXR beside the image (see [`crate::render::Renderer::render_aovs`]).
 
 use crate::accel::RayStats;
 use crate::math::Ray;
@@ -73,4 +76,70 @@ impl Aov {
             }
         }
     }
+}
+
+/// An extra layer written beside the image (`lightpath render --aov albedo,normal,depth`),
+/// from the first hit of each camera sample.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AovLayer {
+    /// The hit material's colour ([`crate::material::Material::albedo`]); 0 for misses
+    /// and surfaces without a material.
+    Albedo,
+    /// The shading normal in render space (as interpolated, before normal maps); 0 for
+    /// misses.
+    Normal,
+    /// The distance from the camera ray's origin to the hit; averaged over the samples
+    /// that hit, +inf where none does.
+    Depth,
+}
+
+impl AovLayer {
+    pub const NAMES: &'static [&'static str] = &["albedo", "normal", "depth"];
+
+    pub fn from_name(name: &str) -> Option<AovLayer> {
+        match name {
+            "albedo" => Some(AovLayer::Albedo),
+            "normal" => Some(AovLayer::Normal),
+            "depth" => Some(AovLayer::Depth),
+            _ => None,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            AovLayer::Albedo => "albedo",
+            AovLayer::Normal => "normal",
+            AovLayer::Depth => "depth",
+        }
+    }
+
+    /// The layer's EXR channel names.
+    pub fn channels(self) -> &'static [&'static str] {
+        match self {
+            AovLayer::Albedo => &["albedo.R", "albedo.G", "albedo.B"],
+            AovLayer::Normal => &["normal.X", "normal.Y", "normal.Z"],
+            AovLayer::Depth => &["depth.Z"],
+        }
+    }
+}
+
+/// What the AOV layers record about a camera ray's first hit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FirstHit {
+    pub albedo: Vec3,
+    /// Unit shading normal in render space.
+    pub normal: Vec3,
+    /// Distance from the ray's origin.
+    pub depth: f32,
+}
+
+/// The first hit of a camera ray, `None` for a miss.
+pub fn first_hit(scene: &Scene, ray: &Ray) -> Option<FirstHit> {
+    let si = scene.intersect(ray)?;
+    let albedo = scene.material(&si).map_or(Vec3::ZERO, |m| m.albedo(si.uv));
+    Some(FirstHit {
+        albedo,
+        normal: si.shading_n,
+        depth: si.t * ray.direction.length(),
+    })
 }

@@ -7,7 +7,7 @@ mod direct;
 mod path_tracer;
 
 pub use ambient_occlusion::AmbientOcclusion;
-pub use aov::{Aov, AovVariable};
+pub use aov::{first_hit, Aov, AovLayer, AovVariable, FirstHit};
 pub use camera_direction::CameraDirection;
 pub use direct::{power_heuristic, Direct};
 pub use path_tracer::PathTracer;

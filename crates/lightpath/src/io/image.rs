@@ -5,7 +5,7 @@
 //! | extension         | read                                  | write                      |
 //! |-------------------|---------------------------------------|----------------------------|
 //! | `.exr`            | first layer, `R`,`G`,`B` (or `Y`), f16/f32/u32 → f32, linear | RGB f32, ZIP, linear |
-//! | `.hdr`            | Radiance RGBE, linear                 | –                          |
+//! | `.hdr`            | Radiance RGBE, linear                 | RGBE (~1% precision), linear; negative and NaN → 0 |
 //! | `.png`            | 8/16-bit, sRGB-decoded by default     | 8-bit RGB, sRGB-encoded    |
 //! | `.jpg`, `.jpeg`   | 8-bit, sRGB-decoded by default        | –                          |
 //!
@@ -276,19 +276,20 @@ fn from_decoded(decoded: &image::DynamicImage, transfer: Transfer) -> Image {
     }
 }
 
-/// Writes a linear RGB image: `.exr` (f32 RGB, ZIP compression, linear values) or
-/// `.png` (8-bit RGB, sRGB-encoded, clamped to [0, 1]).
+/// Writes a linear RGB image: `.exr` (f32 RGB, ZIP compression, linear values),
+/// `.hdr` (Radiance RGBE, linear; negative and NaN values become 0, infinities the
+/// largest RGBE value) or `.png` (8-bit RGB, sRGB-encoded, clamped to [0, 1]).
 ///
 /// The image is written to a temporary file in the target's directory and then
 /// renamed over the target, so a failure never leaves a partial file.
 pub fn write_image(path: &Path, image: &Image) -> Result<()> {
     let kind = match kind_of(path) {
-        Some(kind @ (Kind::Exr | Kind::Png)) => kind,
+        Some(kind @ (Kind::Exr | Kind::Hdr | Kind::Png)) => kind,
         _ => {
             return Err(Error::image(
                 path,
                 format!(
-                    "unsupported image extension {} for writing (expected .exr or .png)",
+                    "unsupported image extension {} for writing (expected .exr, .hdr or .png)",
                     extension_text(path)
                 ),
             ))
@@ -319,6 +320,115 @@ pub fn write_image(path: &Path, image: &Image) -> Result<()> {
     result
 }
 
+/// An extra EXR channel: its full name (`albedo.R`, `depth.Z`, ...) and one value per
+/// pixel, row-major, row 0 at the top.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExrChannel {
+    pub name: String,
+    pub values: Vec<f32>,
+}
+
+/// Writes `image` as an EXR's `R`, `G`, `B` channels (what viewers show by default)
+/// with `extra` channels beside them in the same part (f32, ZIP compression), layered
+/// by name as viewers expect (`albedo.R` is channel `R` of layer `albedo`). Written
+/// atomically like [`write_image`].
+pub fn write_exr_channels(path: &Path, image: &Image, extra: &[ExrChannel]) -> Result<()> {
+    use exr::prelude::{AnyChannel, AnyChannels, Encoding, FlatSamples, Layer, LayerAttributes};
+
+    if kind_of(path) != Some(Kind::Exr) {
+        return Err(Error::image(
+            path,
+            format!(
+                "extra channels need an EXR file, not {}",
+                extension_text(path)
+            ),
+        ));
+    }
+    let count = image.width as usize * image.height as usize;
+    if image.pixels.len() != count || count == 0 {
+        return Err(Error::image(
+            path,
+            format!(
+                "cannot write {} pixels as a {}x{} image",
+                image.pixels.len(),
+                image.width,
+                image.height
+            ),
+        ));
+    }
+    let mut channels: exr::prelude::SmallVec<[AnyChannel<FlatSamples>; 4]> = Default::default();
+    for (c, name) in ["R", "G", "B"].iter().enumerate() {
+        let values = image.pixels.iter().map(|p| p[c]).collect();
+        channels.push(AnyChannel::new(*name, FlatSamples::F32(values)));
+    }
+    for channel in extra {
+        if channel.values.len() != count {
+            return Err(Error::image(
+                path,
+                format!(
+                    "channel `{}` has {} values for {count} pixels",
+                    channel.name,
+                    channel.values.len()
+                ),
+            ));
+        }
+        if channels.iter().any(|c| c.name.to_string() == channel.name) {
+            return Err(Error::image(
+                path,
+                format!("channel `{}` given twice", channel.name),
+            ));
+        }
+        let name = exr::prelude::Text::new_or_none(&channel.name).ok_or_else(|| {
+            Error::image(
+                path,
+                format!("`{}` is not a valid channel name", channel.name),
+            )
+        })?;
+        channels.push(AnyChannel::new(
+            name,
+            FlatSamples::F32(channel.values.clone()),
+        ));
+    }
+    let layer = Layer::new(
+        (image.width as usize, image.height as usize),
+        LayerAttributes::default(),
+        Encoding::SMALL_LOSSLESS,
+        AnyChannels::sort(channels),
+    );
+    let exr_image = exr::prelude::Image::from_layer(layer);
+    write_atomically(path, |writer| {
+        use exr::prelude::traits::*;
+        exr_image.write().to_buffered(writer).map_err(|e| match e {
+            exr::error::Error::Io(e) => Error::io(path, e),
+            other => Error::image(path, format!("cannot write EXR: {other}")),
+        })
+    })
+}
+
+/// Runs `write` on a temporary file next to `path`, then renames it over `path`; on
+/// error the temporary file is removed.
+fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<File>) -> Result<()>,
+) -> Result<()> {
+    let temp = temp_path(path)?;
+    let result = (|| {
+        let file = File::create(&temp).map_err(|e| Error::io(path, e))?;
+        let mut writer = BufWriter::new(file);
+        write(&mut writer)?;
+        writer.flush().map_err(|e| Error::io(path, e))?;
+        let file = writer
+            .into_inner()
+            .map_err(|e| Error::io(path, e.into_error()))?;
+        file.sync_all().map_err(|e| Error::io(path, e))?;
+        std::fs::rename(&temp, path).map_err(|e| Error::io(path, e))
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&temp);
+    }
+    result
+}
+
 /// `.name.tmp-<pid>-<n>` next to `path`.
 fn temp_path(path: &Path) -> Result<PathBuf> {
     static COUNTER: AtomicUsize = AtomicUsize::new(0);
@@ -339,6 +449,7 @@ fn write_to(temp: &Path, target: &Path, kind: Kind, image: &Image) -> Result<()>
     let mut writer = BufWriter::new(file);
     match kind {
         Kind::Exr => write_exr(&mut writer, target, image)?,
+        Kind::Hdr => write_hdr(&mut writer, target, image)?,
         _ => write_png(&mut writer, target, image)?,
     }
     writer.flush().map_err(|e| Error::io(target, e))?;
@@ -366,6 +477,20 @@ fn write_exr(writer: &mut BufWriter<File>, target: &Path, image: &Image) -> Resu
         exr::error::Error::Io(e) => Error::io(target, e),
         other => Error::image(target, format!("cannot write EXR: {other}")),
     })
+}
+
+fn write_hdr(writer: &mut BufWriter<File>, target: &Path, image: &Image) -> Result<()> {
+    // RGBE stores no sign: negative and NaN values become 0, as do values below its
+    // smallest exponent; values beyond its largest exponent (and infinities) saturate.
+    let valid = |c: f32| if c >= 1e-37 { c.min(1e38) } else { 0.0 };
+    let pixels: Vec<image::Rgb<f32>> = image
+        .pixels
+        .iter()
+        .map(|p| image::Rgb(p.to_array().map(valid)))
+        .collect();
+    image::codecs::hdr::HdrEncoder::new(writer)
+        .encode(&pixels, image.width as usize, image.height as usize)
+        .map_err(|e| image_crate_error(target, e))
 }
 
 /// Linear value → 8-bit sRGB code (clamped, rounded; NaN → 0).
@@ -641,6 +766,81 @@ mod tests {
                 "{p}"
             );
         }
+    }
+
+    /// `.hdr` written and read back: values within RGBE precision (8-bit mantissa
+    /// sharing the largest channel's exponent: 1/128 of that channel), negatives and NaN
+    /// as 0, infinity saturated; the file replaced atomically.
+    #[test]
+    fn hdr_round_trip_within_rgbe_precision() {
+        let dir = TempDir::new();
+        let path = dir.path("out.hdr");
+        let mut image = test_image(37, 5, 3.0);
+        image.set(0, 0, Vec3::new(1e-3, 250.0, 0.7));
+        image.set(1, 0, Vec3::new(-1.0, f32::NAN, 0.25));
+        image.set(2, 0, Vec3::new(f32::INFINITY, 1.0, 0.0));
+        write_image(&path, &image).expect("write");
+        let back = read_image(&path, None).expect("read");
+        assert_eq!((back.width, back.height), (37, 5));
+        for (i, (a, b)) in image.pixels.iter().zip(&back.pixels).enumerate().skip(3) {
+            let tolerance = a.max_element() / 128.0;
+            assert!((*a - *b).abs().max_element() <= tolerance, "{i}: {a} {b}");
+            // The largest channel itself is within 1%.
+            assert!((a.max_element() - b.max_element()).abs() <= 0.01 * a.max_element());
+        }
+        let p = back.get(0, 0);
+        assert!((p.y - 250.0).abs() <= 250.0 / 128.0, "{p}");
+        assert_eq!(back.get(1, 0).x, 0.0);
+        assert_eq!(back.get(1, 0).y, 0.0);
+        assert!((back.get(1, 0).z - 0.25).abs() < 0.0025);
+        assert!(back.get(2, 0).x > 1e37 && back.get(2, 0).x.is_finite());
+        write_image(&path, &Image::new(2, 2)).expect("overwrite");
+        assert_eq!(
+            read_image(&path, None).expect("read").pixels,
+            vec![Vec3::ZERO; 4]
+        );
+        assert_eq!(dir.files(), vec!["out.hdr"]);
+    }
+
+    /// Extra channels sit beside R, G, B; the image still reads back as before; bad
+    /// requests are errors that leave nothing behind.
+    #[test]
+    fn exr_with_extra_channels() {
+        let dir = TempDir::new();
+        let path = dir.path("layers.exr");
+        let image = test_image(5, 3, 2.0);
+        let depth = ExrChannel {
+            name: "depth.Z".into(),
+            values: (0..15).map(|i| i as f32).collect(),
+        };
+        write_exr_channels(&path, &image, std::slice::from_ref(&depth)).expect("write");
+        assert_eq!(read_image(&path, None).expect("read"), image);
+        let read = exr::prelude::read_all_flat_layers_from_file(&path).expect("read");
+        let channel = read.layer_data[0]
+            .channel_data
+            .list
+            .iter()
+            .find(|c| c.name.to_string() == "depth.Z")
+            .expect("depth.Z");
+        assert!(
+            matches!(&channel.sample_data, exr::prelude::FlatSamples::F32(v) if *v == depth.values)
+        );
+        let short = ExrChannel {
+            name: "a.Z".into(),
+            values: vec![0.0; 3],
+        };
+        let twice = ExrChannel {
+            name: "G".into(),
+            values: vec![0.0; 15],
+        };
+        for (name, extra) in [("x.exr", &short), ("y.exr", &twice), ("z.png", &depth)] {
+            let result = write_exr_channels(&dir.path(name), &image, std::slice::from_ref(extra));
+            assert!(
+                matches!(result, Err(Error::Image { .. })),
+                "{name}: {result:?}"
+            );
+        }
+        assert_eq!(dir.files(), vec!["layers.exr"]);
     }
 
     #[test]

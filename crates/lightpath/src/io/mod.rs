@@ -4,6 +4,7 @@ pub mod gltf;
 pub mod image;
 pub mod lightwave;
 pub mod mitsuba;
+pub mod mtl;
 pub mod obj;
 pub mod ply;
 pub mod props;
@@ -49,12 +50,16 @@ pub struct LoadOptions {
     pub lenient: bool,
 }
 
-/// Loads a scene file. `.gltf` and `.glb` files are glTF 2.0 ([`gltf`]); XML dialects
-/// are recognised from the root element: a root `<scene version="3...">` is a Mitsuba 3
-/// scene, anything else is lightwave.
+/// Loads a scene file. `.gltf` and `.glb` files are glTF 2.0 ([`gltf`]); a `.obj` file
+/// is a scene of its own, with its MTL materials ([`obj::load_scene`]); otherwise the XML
+/// dialect is recognised from the root element: a root `<scene version="3...">` is a
+/// Mitsuba 3 scene, anything else is lightwave.
 pub fn load_scene(path: &Path, options: &LoadOptions) -> Result<LoadedScene> {
     if self::gltf::is_gltf(path) {
         return self::gltf::load(path, options);
+    }
+    if extension(path) == "obj" {
+        return obj::load_scene(path, options);
     }
     if let Ok(text) = std::fs::read_to_string(path) {
         if mitsuba::is_mitsuba(&text) {

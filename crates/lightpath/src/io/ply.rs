@@ -24,6 +24,9 @@
 //!
 //! Malformed files produce an [`Error`] naming the file and, where it applies,
 //! the header line, the vertex or the face; the loader never panics on bad data.
+//! Non-finite positions, normals or texture coordinates (NaN, infinities, doubles
+//! beyond the `f32` range), indices outside `0..vertex count` and ascii integers
+//! outside their declared type's range are errors.
 
 use std::path::Path;
 
@@ -100,6 +103,33 @@ impl ScalarType {
 
     fn is_integer(self) -> bool {
         !matches!(self, ScalarType::F32 | ScalarType::F64)
+    }
+
+    /// The PLY name of the type (for messages).
+    fn name(self) -> &'static str {
+        match self {
+            ScalarType::I8 => "char",
+            ScalarType::U8 => "uchar",
+            ScalarType::I16 => "short",
+            ScalarType::U16 => "ushort",
+            ScalarType::I32 => "int",
+            ScalarType::U32 => "uint",
+            ScalarType::F32 => "float",
+            ScalarType::F64 => "double",
+        }
+    }
+
+    /// The values an integer type holds (floats: all).
+    fn range(self) -> (f64, f64) {
+        match self {
+            ScalarType::I8 => (i8::MIN as f64, i8::MAX as f64),
+            ScalarType::U8 => (0.0, u8::MAX as f64),
+            ScalarType::I16 => (i16::MIN as f64, i16::MAX as f64),
+            ScalarType::U16 => (0.0, u16::MAX as f64),
+            ScalarType::I32 => (i32::MIN as f64, i32::MAX as f64),
+            ScalarType::U32 => (0.0, u32::MAX as f64),
+            ScalarType::F32 | ScalarType::F64 => (f64::NEG_INFINITY, f64::INFINITY),
+        }
     }
 }
 
@@ -369,14 +399,19 @@ impl Body for AsciiBody<'_> {
         let token = self.token().ok_or_else(|| UNEXPECTED_EOF.to_string())?;
         let text = std::str::from_utf8(token).map_err(|_| "non-text data in ascii body")?;
         let value = if ty.is_integer() {
-            match text.parse::<i64>() {
+            let v = match text.parse::<i64>() {
                 Ok(v) => v as f64,
                 // Some writers print integers as `3.0`; accept integral floats.
                 Err(_) => match text.parse::<f64>() {
                     Ok(v) if v.fract() == 0.0 => v,
                     _ => return Err(format!("`{text}` is not an integer")),
                 },
+            };
+            let (min, max) = ty.range();
+            if v < min || v > max {
+                return Err(format!("`{text}` is out of range for {}", ty.name()));
             }
+            v
         } else {
             text.parse::<f64>()
                 .map_err(|_| format!("`{text}` is not a number"))?
@@ -497,15 +532,31 @@ fn read_body<B: Body>(
                 }
                 mesh.positions.push(p);
                 if has_normals {
-                    mesh.normals.push(Vec3::new(
+                    let n = Vec3::new(
                         values[NX] as f32,
                         values[NX + 1] as f32,
                         values[NX + 2] as f32,
-                    ));
+                    );
+                    if !n.is_finite() {
+                        return Err(format!(
+                            "vertex {v} has a non-finite normal ({}, {}, {})",
+                            values[NX],
+                            values[NX + 1],
+                            values[NX + 2]
+                        ));
+                    }
+                    mesh.normals.push(n);
                 }
                 if has_uvs {
-                    mesh.uvs
-                        .push(Vec2::new(values[U] as f32, values[U + 1] as f32));
+                    let uv = Vec2::new(values[U] as f32, values[U + 1] as f32);
+                    if !uv.is_finite() {
+                        return Err(format!(
+                            "vertex {v} has non-finite texture coordinates ({}, {})",
+                            values[U],
+                            values[U + 1]
+                        ));
+                    }
+                    mesh.uvs.push(uv);
                 }
             }
         } else if std::ptr::eq(element, face) {
@@ -779,6 +830,184 @@ end_header
             let message = mesh_error(text.as_bytes());
             assert!(message.contains("vertex 2"), "{bad}: {message}");
         }
+    }
+
+    /// Appends `value` as PLY type `ty` in `format` (ascii: a token and a space).
+    fn put_value(out: &mut Vec<u8>, format: &str, ty: &str, value: f64) {
+        if format == "ascii" {
+            out.extend_from_slice(format!("{value} ").as_bytes());
+            return;
+        }
+        let big = format == "binary_big_endian";
+        macro_rules! bytes {
+            ($t:ty) => {{
+                let v = value as $t;
+                if big {
+                    out.extend_from_slice(&v.to_be_bytes())
+                } else {
+                    out.extend_from_slice(&v.to_le_bytes())
+                }
+            }};
+        }
+        match ty {
+            "char" | "int8" => bytes!(i8),
+            "uchar" | "uint8" => bytes!(u8),
+            "short" | "int16" => bytes!(i16),
+            "ushort" | "uint16" => bytes!(u16),
+            "int" | "int32" => bytes!(i32),
+            "uint" | "uint32" => bytes!(u32),
+            "float" | "float32" => bytes!(f32),
+            "double" | "float64" => bytes!(f64),
+            other => panic!("unknown type {other}"),
+        }
+    }
+
+    const TYPES: [&str; 16] = [
+        "char", "uchar", "short", "ushort", "int", "uint", "float", "double", "int8", "uint8",
+        "int16", "uint16", "int32", "uint32", "float32", "float64",
+    ];
+    const FORMATS: [&str; 3] = ["ascii", "binary_little_endian", "binary_big_endian"];
+
+    /// Five vertices whose every property has type `vertex_ty`, a quad, a pentagon and a
+    /// triangle whose list count and index types are `count_ty` and `index_ty`.
+    fn typed_mesh(format: &str, vertex_ty: &str, count_ty: &str, index_ty: &str) -> Vec<u8> {
+        let mut out = format!(
+            "ply\nformat {format} 1.0\nelement vertex 5\n\
+             property {vertex_ty} x\nproperty {vertex_ty} y\nproperty {vertex_ty} z\n\
+             property {vertex_ty} nx\nproperty {vertex_ty} ny\nproperty {vertex_ty} nz\n\
+             property {vertex_ty} u\nproperty {vertex_ty} v\n\
+             element face 3\nproperty list {count_ty} {index_ty} vertex_indices\nend_header\n"
+        )
+        .into_bytes();
+        for i in 0..5 {
+            let i = i as f64;
+            for value in [
+                i,
+                i % 2.0,
+                2.0,
+                0.0,
+                0.0,
+                1.0,
+                i % 2.0,
+                (i / 2.0).floor() % 2.0,
+            ] {
+                put_value(&mut out, format, vertex_ty, value);
+            }
+            if format == "ascii" {
+                out.push(b'\n');
+            }
+        }
+        for face in [
+            &[0.0, 1.0, 2.0, 3.0][..],
+            &[4.0, 3.0, 2.0, 1.0, 0.0],
+            &[2.0, 4.0, 0.0],
+        ] {
+            put_value(&mut out, format, count_ty, face.len() as f64);
+            for &index in face {
+                put_value(&mut out, format, index_ty, index);
+            }
+            if format == "ascii" {
+                out.push(b'\n');
+            }
+        }
+        out
+    }
+
+    /// Every format and every scalar type name (aliases included) for vertex data, list
+    /// counts and indices; quads and polygons fan-triangulated as `(v0, vi, vi+1)`.
+    #[test]
+    fn every_format_and_scalar_type() {
+        let integers: Vec<&str> = TYPES
+            .iter()
+            .copied()
+            .filter(|t| !t.starts_with("float") && *t != "double")
+            .collect();
+        let mut cases = 0;
+        for format in FORMATS {
+            for (k, vertex_ty) in TYPES.iter().enumerate() {
+                let count_ty = integers[k % integers.len()];
+                let index_ty = integers[(k + 3) % integers.len()];
+                let bytes = typed_mesh(format, vertex_ty, count_ty, index_ty);
+                let what = format!("{format} {vertex_ty} list {count_ty} {index_ty}");
+                let mesh = load_bytes(&bytes).unwrap_or_else(|e| panic!("{what}: {e}"));
+                assert_eq!(
+                    mesh.indices,
+                    vec![
+                        [0, 1, 2],
+                        [0, 2, 3],
+                        [4, 3, 2],
+                        [4, 2, 1],
+                        [4, 1, 0],
+                        [2, 4, 0]
+                    ],
+                    "{what}"
+                );
+                for i in 0..5 {
+                    let f = i as f32;
+                    assert_eq!(mesh.positions[i], Vec3::new(f, f % 2.0, 2.0), "{what}");
+                    assert_eq!(
+                        mesh.uvs[i],
+                        Vec2::new(f % 2.0, (f / 2.0).floor() % 2.0),
+                        "{what}"
+                    );
+                }
+                assert_eq!(mesh.normals, vec![Vec3::Z; 5], "{what}");
+                cases += 1;
+            }
+        }
+        assert_eq!(cases, 48);
+    }
+
+    /// NaN and infinities in any vertex data, in ascii and binary files, are errors that
+    /// name the file and the vertex; so are ascii integers beyond their type.
+    #[test]
+    fn non_finite_vertex_data_and_out_of_range_values() {
+        for format in FORMATS {
+            for (slot, what) in [(0, "position"), (4, "normal"), (7, "texture")] {
+                for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 1e300] {
+                    let mut out = format!(
+                        "ply\nformat {format} 1.0\nelement vertex 3\nproperty double x\n\
+                         property double y\nproperty double z\nproperty double nx\n\
+                         property double ny\nproperty double nz\nproperty double u\n\
+                         property double v\nelement face 1\n\
+                         property list uchar int vertex_indices\nend_header\n"
+                    )
+                    .into_bytes();
+                    for v in 0..3 {
+                        for s in 0..8 {
+                            let value = if v == 1 && s == slot { bad } else { 0.5 };
+                            put_value(&mut out, format, "double", value);
+                        }
+                    }
+                    put_value(&mut out, format, "uchar", 3.0);
+                    for i in 0..3 {
+                        put_value(&mut out, format, "int", i as f64);
+                    }
+                    let dir = TempDir::new();
+                    let path = dir.write("bad.ply", &out);
+                    let message = load_ply(&path).expect_err("non-finite").to_string();
+                    assert!(
+                        message.starts_with(&path.display().to_string()),
+                        "{message}"
+                    );
+                    assert!(
+                        message.contains("vertex 1") && message.contains(what),
+                        "{format} {slot} {bad}: {message}"
+                    );
+                }
+            }
+        }
+        let text = ASCII_QUAD.replace("4 0 1 2 3", "256 0 1 2 3");
+        let message = mesh_error(text.as_bytes());
+        assert!(
+            message.contains("face 0") && message.contains("out of range for uchar"),
+            "{message}"
+        );
+        let text = ASCII_QUAD
+            .replace("list uchar int", "list uchar char")
+            .replace("3 1 1 2", "3 1 200 2");
+        let message = mesh_error(text.as_bytes());
+        assert!(message.contains("face 1"), "{message}");
     }
 
     #[test]

@@ -231,6 +231,30 @@ impl Material {
         }
     }
 
+    /// The material's colour at `uv`, as denoisers' albedo buffers want it: the
+    /// diffuse or base colour (diffuse, plastic, principled), the reflectance tint of
+    /// conductors, the transmittance tint of dielectrics; two-sided and normal-mapped
+    /// materials give their inner material's, a blend mixes its two by its weight. Not
+    /// a directional reflectance: no Fresnel, no roughness.
+    pub fn albedo(&self, uv: Vec2) -> Vec3 {
+        match self {
+            Material::Diffuse(m) => m.albedo.eval(uv),
+            Material::Conductor(m) => m.reflectance.eval(uv),
+            Material::RoughConductor(m) => m.reflectance.eval(uv),
+            Material::Dielectric(m) => m.transmittance.eval(uv),
+            Material::RoughDielectric(m) => m.transmittance.eval(uv),
+            Material::ThinDielectric(m) => m.transmittance.eval(uv),
+            Material::Plastic(m) => m.diffuse.eval(uv),
+            Material::Principled(m) => m.base_color.eval(uv),
+            Material::TwoSided(m) => m.inner.albedo(uv),
+            Material::NormalMap(m) => m.inner.albedo(uv),
+            Material::Blend(m) => {
+                let w = scalar(&m.weight, uv);
+                m.first.albedo(uv) * (1.0 - w) + m.second.albedo(uv) * w
+            }
+        }
+    }
+
     /// True when every lobe is a delta (a mirror or smooth glass): next-event estimation
     /// is useless there.
     pub fn is_delta(&self) -> bool {

@@ -1180,3 +1180,33 @@ fn reference_scenes() {
     }
     assert!(failures.is_empty(), "over the limits: {failures:?}");
 }
+
+/// `albedo` gives each material's colour; wrappers pass their inner material's through
+/// and a blend mixes by its weight.
+#[test]
+fn albedo_of_each_material() {
+    let uv = Vec2::new(0.3, 0.7);
+    assert_eq!(diffuse(0.25).albedo(uv), Vec3::splat(0.25));
+    assert_eq!(plastic(0.4, 1.5).albedo(uv), Vec3::splat(0.4));
+    let base = Material::Principled(Principled {
+        base_color: color(0.1, 0.2, 0.3),
+        roughness: constant(0.5),
+        metallic: constant(0.0),
+        specular: constant(0.5),
+    });
+    assert_eq!(base.albedo(uv), Vec3::new(0.1, 0.2, 0.3));
+    assert_eq!(twosided(diffuse(0.6)).albedo(uv), Vec3::splat(0.6));
+    assert_eq!(
+        normalmap(diffuse(0.7), Vec3::new(0.5, 0.5, 1.0)).albedo(uv),
+        Vec3::splat(0.7)
+    );
+    let mixed = blend(diffuse(0.2), diffuse(0.6), 0.25).albedo(uv);
+    assert!(
+        (mixed - Vec3::splat(0.3)).abs().max_element() < 1e-6,
+        "{mixed}"
+    );
+    assert_eq!(
+        rough_conductor(0.3).albedo(uv),
+        rough_conductor(0.3).albedo(Vec2::ZERO)
+    );
+}
