@@ -72,7 +72,11 @@ fn run(target: &str, input: &Path) {
             check_error(load_scene(&path, &LoadOptions::default()), input);
         }
         "scene_gltf" => {
-            let ext = if data.starts_with(b"glTF") { "glb" } else { "gltf" };
+            let ext = if data.starts_with(b"glTF") {
+                "glb"
+            } else {
+                "gltf"
+            };
             let path = dir.join(format!("input.{ext}"));
             std::fs::write(&path, &data).unwrap();
             check_error(load_scene(&path, &LoadOptions::default()), input);

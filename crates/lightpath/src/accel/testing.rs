@@ -211,11 +211,26 @@ pub(crate) fn check_against_list(
         let (got, ..) = closest(accel, tris, ray);
         match (want, got) {
             (Some((tw, pw)), Some((tg, pg))) => {
-                assert_eq!(
-                    tw, tg,
-                    "{what}: ray {i} {ray:?}: t (list prim {pw}, got {pg})"
-                );
-                if pw != pg {
+                if tw != tg {
+                    // Coplanar overlapping triangles: their distances may differ in the
+                    // last bit, and which of them wins depends on the order they are
+                    // tested in (the watertight test rejects against the current t_max
+                    // in scaled arithmetic). Both answers are then right: each primitive,
+                    // tested on its own, must give the distance reported for it, and the
+                    // two distances must agree to within 2 ulps.
+                    let wr = WatertightRay::new(ray);
+                    let alone = |p: u32| {
+                        let [a, b, c] = tris[p as usize];
+                        intersect_triangle_watertight(&wr, ray.t_min, ray.t_max, a, b, c)
+                            .map(|h| h.0)
+                    };
+                    let ulps = (tw.to_bits() as i64 - tg.to_bits() as i64).abs();
+                    assert!(
+                        ulps <= 2 && alone(pw) == Some(tw) && alone(pg) == Some(tg),
+                        "{what}: ray {i} {ray:?}: t {tw} (list prim {pw}) vs {tg} (prim {pg})"
+                    );
+                }
+                if pw != pg && tw == tg {
                     let [a, b, c] = tris[pg as usize];
                     let wr = WatertightRay::new(ray);
                     let t = intersect_triangle_watertight(&wr, ray.t_min, ray.t_max, a, b, c);

@@ -132,9 +132,14 @@ impl Bounds3 {
         }
         let t0 = (self.min - origin) * inv_dir;
         let t1 = (self.max - origin) * inv_dir;
-        let tnear = t0.min(t1);
-        let tfar = t0.max(t1) * (1.0 + 2.0 * super::gamma(3));
-        // NaN-safe: max/min with glam ignore NaN in the way we want for 0 * inf cases.
+        // A ray in the plane of a face (0·∞ = NaN) is inside that slab.
+        let on_face = t0.is_nan_mask() | t1.is_nan_mask();
+        let tnear = Vec3::select(on_face, Vec3::NEG_INFINITY, t0.min(t1));
+        let tfar = Vec3::select(
+            on_face,
+            Vec3::INFINITY,
+            t0.max(t1) * (1.0 + 2.0 * super::gamma(3)),
+        );
         let enter = tnear.max_element().max(t_min);
         let exit = tfar.min_element().min(t_max);
         if enter <= exit {
@@ -179,5 +184,24 @@ mod tests {
         let b = e.union(&Bounds3::from_point(Vec3::ONE));
         assert_eq!(b.min, Vec3::ONE);
         assert!(e.intersect_ray(&Ray::new(Vec3::ZERO, Vec3::X)).is_none());
+    }
+
+    /// Rays running exactly in the plane of a face, with a zero direction component
+    /// (0·∞ = NaN in the slab test), hit the box; rays beside it do not.
+    #[test]
+    fn rays_in_a_face_plane_hit() {
+        let b = Bounds3::new(Vec3::ZERO, Vec3::ONE);
+        for (o, d) in [
+            (Vec3::new(-1.0, 0.0, 0.5), Vec3::X),
+            (Vec3::new(-1.0, 1.0, 0.5), Vec3::X),
+            (Vec3::new(2.0, 0.0, 0.5), -Vec3::X),
+            (Vec3::new(2.0, 1.0, 1.0), -Vec3::X),
+            (Vec3::new(0.0, 0.0, -3.0), Vec3::Z),
+        ] {
+            let hit = b.intersect_p(o, d.recip(), 0.0, f32::INFINITY);
+            assert!(hit.is_some(), "{o} {d}");
+        }
+        let beside = b.intersect_p(Vec3::new(-1.0, 1.0001, 0.5), Vec3::X.recip(), 0.0, 10.0);
+        assert!(beside.is_none());
     }
 }
