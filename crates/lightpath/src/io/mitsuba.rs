@@ -37,8 +37,8 @@
 //!   `rr_depth` (default 5) is passed through. `direct` (its sample counts are ignored).
 //!   `aov` with a single `nn:sh_normal`/`sh_normal`/`geo_normal` (→ normals, shown as
 //!   (n+1)/2), `dd:depth` (→ distance) or `uv`.
-//! - BSDFs: our `diffuse` reflects on both sides whereas Mitsuba's is black from the
-//!   back; other BSDFs behave as ours do. `roughconductor`/`roughdielectric` `alpha`
+//! - BSDFs: `diffuse`, `conductor` and `roughconductor` are one-sided as in Mitsuba
+//!   (black from behind, [`OneSided`]) unless wrapped in `twosided`. `roughconductor`/`roughdielectric` `alpha`
 //!   becomes our roughness `sqrt(alpha)`, with Mitsuba's default `beckmann` distribution
 //!   or `ggx`. Named conductors (`material`) use the RGB (η, k) that Mitsuba's RGB
 //!   variants derive from its spectral tables ([`fresnel::MITSUBA_METALS`]).
@@ -71,8 +71,8 @@ use crate::light::{
 };
 use crate::material::microfacet::Distribution;
 use crate::material::{
-    fresnel, Blend, ComplexIor, Conductor, Dielectric, Diffuse, Material, NormalMap, Plastic,
-    Principled, RoughConductor, RoughDielectric, ThinDielectric, TwoSided,
+    fresnel, Blend, ComplexIor, Conductor, Dielectric, Diffuse, Material, NormalMap, OneSided,
+    Plastic, Principled, RoughConductor, RoughDielectric, ThinDielectric, TwoSided,
 };
 use crate::math::Transform;
 use crate::sampling::{IndependentSampler, Sampler};
@@ -931,9 +931,9 @@ impl Builder {
         }
         instance.material = Some(match material {
             Some(m) => m,
-            None => Arc::new(Material::Diffuse(Diffuse {
+            None => Arc::new(one_sided(Material::Diffuse(Diffuse {
                 albedo: Arc::new(Texture::Constant(Vec3::splat(0.5))),
-            })),
+            }))),
         });
         node.check_all_used()?;
         Ok(instance)
@@ -1502,9 +1502,22 @@ impl Builder {
         if kind.is_some() {
             self.check_used(node)?;
         }
-        let m = Arc::new(material);
+        let m = Arc::new(one_sided(material));
         self.materials.insert(key, m.clone());
         Ok(m)
+    }
+}
+
+/// Mitsuba's reflective BSDFs are black from behind (only `twosided` makes them reflect
+/// on both sides); ours reflect on both sides, so they are wrapped.
+fn one_sided(material: Material) -> Material {
+    match material {
+        Material::Diffuse(_) | Material::Conductor(_) | Material::RoughConductor(_) => {
+            Material::OneSided(OneSided {
+                inner: Arc::new(material),
+            })
+        }
+        m => m,
     }
 }
 
@@ -1620,6 +1633,59 @@ mod tests {
         crate::io::load_scene_str(xml, Path::new("m.xml"), &options)
     }
 
+    /// The BSDF inside Mitsuba's one-sidedness.
+    fn inner(m: &Material) -> &Material {
+        match m {
+            Material::OneSided(o) => &o.inner,
+            m => m,
+        }
+    }
+
+    /// Diffuse, conductor and rough conductor are black from behind, as in Mitsuba;
+    /// inside `twosided` they reflect on both sides.
+    #[test]
+    fn reflective_bsdfs_are_one_sided() {
+        let loaded = load(
+            &scene_with(
+                r#"<shape type="rectangle"><bsdf type="diffuse"/></shape>
+                   <shape type="rectangle"><bsdf type="twosided"><bsdf type="diffuse"/></bsdf></shape>
+                   <shape type="rectangle"><bsdf type="roughconductor"/></shape>"#,
+            ),
+            &[],
+        )
+        .unwrap();
+        let up = Vec3::new(0.3, 0.0, 1.0).normalize();
+        let down = Vec3::new(-0.3, 0.0, -1.0).normalize();
+        let si = crate::geometry::SurfaceInteraction {
+            p: Vec3::ZERO,
+            p_error: Vec3::ZERO,
+            t: 1.0,
+            n: Vec3::Z,
+            shading_n: Vec3::Z,
+            dpdu: Vec3::X,
+            uv: Vec2::splat(0.5),
+            wo: up,
+            instance: 0,
+            prim: 0,
+        };
+        let f = |i: usize, wo: Vec3, wi: Vec3| {
+            let inst = &loaded.scene.instances[i];
+            inst.material.as_ref().unwrap().eval(&si, wo, wi)
+        };
+        let wi_up = Vec3::new(-0.2, 0.1, 1.0).normalize();
+        for i in [0, 2] {
+            assert!(
+                f(i, up, wi_up).max_element() > 0.0,
+                "instance {i} from the front"
+            );
+            assert_eq!(f(i, down, -wi_up), Vec3::ZERO, "instance {i} from behind");
+        }
+        assert!(
+            f(1, down, -wi_up).max_element() > 0.0,
+            "twosided from behind"
+        );
+    }
+
     fn scene_with(body: &str) -> String {
         format!(
             r#"<scene version="3.0.0">
@@ -1713,7 +1779,7 @@ mod tests {
         assert_eq!(loaded.scene.lights.len(), 1);
         // The hair BSDF is a diffuse 0.5, the noise texture a constant 0.5.
         for i in &loaded.scene.instances {
-            match i.material.as_deref() {
+            match i.material.as_deref().map(inner) {
                 Some(Material::Diffuse(d)) => {
                     assert_eq!(d.albedo.eval(glam::Vec2::ZERO), Vec3::splat(0.5))
                 }
@@ -1753,7 +1819,7 @@ mod tests {
             "n = {:?}",
             si.n
         );
-        let Some(Material::Diffuse(d)) = scene.material(&si) else {
+        let Some(Material::Diffuse(d)) = scene.material(&si).map(inner) else {
             panic!("no diffuse material")
         };
         assert_eq!(d.albedo.eval(Vec2::ZERO), Vec3::new(1.0, 0.0, 0.0));
@@ -1766,7 +1832,7 @@ mod tests {
             "t = {}",
             si.t
         );
-        let Some(Material::Diffuse(d)) = scene.material(&si) else {
+        let Some(Material::Diffuse(d)) = scene.material(&si).map(inner) else {
             panic!("no diffuse material")
         };
         assert_eq!(d.albedo.eval(Vec2::ZERO), Vec3::splat(0.8));
@@ -1984,7 +2050,7 @@ mod tests {
         let b = inst[0].bounds;
         assert!((b.min - Vec3::new(-0.5, 0.0, 4.5)).length() < 1e-4, "{b:?}");
         assert!((b.max - Vec3::new(0.5, 2.0, 5.5)).length() < 1e-4, "{b:?}");
-        match inst[0].material.as_deref() {
+        match inst[0].material.as_deref().map(inner) {
             Some(Material::RoughConductor(r)) => {
                 assert!((r.roughness_u.eval(Vec2::ZERO).x - 0.5).abs() < 1e-6);
                 assert!(r.ior.is_some());
@@ -2000,7 +2066,7 @@ mod tests {
             Some(Material::Plastic(_))
         ));
         match inst[3].material.as_deref() {
-            Some(Material::Blend(b)) => match &*b.first {
+            Some(Material::Blend(b)) => match inner(&b.first) {
                 Material::Diffuse(d) => match &*d.albedo {
                     Texture::Checkerboard(c) => assert_eq!(c.scale, Vec2::splat(8.0)),
                     t => panic!("{t:?}"),

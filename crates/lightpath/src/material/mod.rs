@@ -38,6 +38,7 @@ mod diffuse;
 pub mod fresnel;
 pub mod microfacet;
 mod normalmap;
+mod onesided;
 mod plastic;
 mod principled;
 mod rough_conductor;
@@ -53,6 +54,7 @@ pub use conductor::{ComplexIor, Conductor};
 pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
 pub use normalmap::NormalMap;
+pub use onesided::OneSided;
 pub use plastic::Plastic;
 pub use principled::Principled;
 pub use rough_conductor::RoughConductor;
@@ -93,6 +95,7 @@ pub enum Material {
     Plastic(Plastic),
     Principled(Principled),
     TwoSided(TwoSided),
+    OneSided(OneSided),
     Blend(Blend),
     NormalMap(NormalMap),
 }
@@ -192,6 +195,7 @@ impl Material {
             Material::Plastic(m) => m.eval(uv, wo, wi),
             Material::Principled(m) => m.eval(uv, wo, wi),
             Material::TwoSided(m) => m.eval(uv, wo, wi),
+            Material::OneSided(m) => m.eval(uv, wo, wi),
             Material::Blend(m) => m.eval(uv, wo, wi),
             Material::NormalMap(m) => m.eval(uv, wo, wi),
         }
@@ -209,6 +213,7 @@ impl Material {
             Material::Plastic(m) => m.pdf(uv, wo, wi),
             Material::Principled(m) => m.pdf(uv, wo, wi),
             Material::TwoSided(m) => m.pdf(uv, wo, wi),
+            Material::OneSided(m) => m.pdf(uv, wo, wi),
             Material::Blend(m) => m.pdf(uv, wo, wi),
             Material::NormalMap(m) => m.pdf(uv, wo, wi),
         }
@@ -226,6 +231,7 @@ impl Material {
             Material::Plastic(m) => m.sample(uv, wo, u_lobe, u),
             Material::Principled(m) => m.sample(uv, wo, u_lobe, u),
             Material::TwoSided(m) => m.sample(uv, wo, u_lobe, u),
+            Material::OneSided(m) => m.sample(uv, wo, u_lobe, u),
             Material::Blend(m) => m.sample(uv, wo, u_lobe, u),
             Material::NormalMap(m) => m.sample(uv, wo, u_lobe, u),
         }
@@ -247,6 +253,7 @@ impl Material {
             Material::Plastic(m) => m.diffuse.eval(uv),
             Material::Principled(m) => m.base_color.eval(uv),
             Material::TwoSided(m) => m.inner.albedo(uv),
+            Material::OneSided(m) => m.inner.albedo(uv),
             Material::NormalMap(m) => m.inner.albedo(uv),
             Material::Blend(m) => {
                 let w = scalar(&m.weight, uv);
@@ -266,6 +273,7 @@ impl Material {
             | Material::Plastic(_)
             | Material::Principled(_) => false,
             Material::TwoSided(m) => m.inner.is_delta(),
+            Material::OneSided(m) => m.inner.is_delta(),
             Material::NormalMap(m) => m.inner.is_delta(),
             Material::Blend(m) => m.first.is_delta() && m.second.is_delta(),
         }
