@@ -101,7 +101,7 @@ pub fn is_gltf(path: &Path) -> bool {
 /// Loads a `.gltf` or `.glb` file; external buffers and images resolve from its folder.
 pub fn load(path: &Path, options: &LoadOptions) -> Result<LoadedScene> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let gltf = ::gltf::Gltf::from_slice(&bytes).map_err(|e| parse_error(path, e))?;
+    let gltf = parse(path, &bytes)?;
     let base = path.parent().unwrap_or(Path::new(".")).to_path_buf();
     let mut loader = Loader {
         path: path.to_path_buf(),
@@ -122,6 +122,40 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<LoadedScene> {
 /// The error of a file that does not parse: JSON syntax with its line and column, GLB
 /// container problems, or the `gltf` crate's validation (every problem with its JSON
 /// path).
+/// Parses and validates a glTF document. The `gltf` crate's own validation indexes the
+/// accessor of every primitive's `POSITION` without checking it exists (a panic found by
+/// fuzzing), so every accessor reference of the meshes is checked first.
+fn parse(path: &Path, bytes: &[u8]) -> Result<::gltf::Gltf> {
+    let raw =
+        ::gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| parse_error(path, e))?;
+    let json = raw.document.as_json();
+    let accessors = json.accessors.len();
+    for (m, mesh) in json.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let attributes = primitive.attributes.values().map(|a| a.value());
+            for index in attributes.chain(primitive.indices.as_ref().map(|i| i.value())) {
+                if index >= accessors {
+                    return Err(Error::scene(
+                        Location {
+                            file: path.to_path_buf(),
+                            line: 0,
+                            column: 0,
+                        },
+                        format!(
+                            "mesh {m} primitive {p} refers to accessor {index}, but the file \
+                             has {accessors} accessors"
+                        ),
+                    ));
+                }
+            }
+        }
+    }
+    let blob = raw.blob;
+    let document =
+        ::gltf::Document::from_json(raw.document.into_json()).map_err(|e| parse_error(path, e))?;
+    Ok(::gltf::Gltf { document, blob })
+}
+
 fn parse_error(path: &Path, error: ::gltf::Error) -> Error {
     let at = |line: usize, column: usize| Location {
         file: path.to_path_buf(),
