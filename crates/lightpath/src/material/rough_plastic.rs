@@ -50,6 +50,7 @@ use crate::math::INV_PI;
 use crate::sampling::warp;
 use crate::texture::Texture;
 use glam::{Vec2, Vec3};
+use rayon::prelude::*;
 use std::sync::{Arc, Mutex};
 
 /// Number of tabulated incident cosines (Mitsuba's `MI_ROUGH_TRANSMITTANCE_RES`).
@@ -212,11 +213,23 @@ impl Coating {
     /// The coating for (distribution, α, η), computed on first use.
     fn shared(distribution: Distribution, alpha: f32, eta: f32) -> Arc<Coating> {
         let key = (distribution, alpha.to_bits(), eta.to_bits());
-        let mut cache = COATINGS.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((_, c)) = cache.iter().find(|(k, _)| *k == key) {
-            return c.clone();
+        let find = |cache: &[(CoatingKey, Arc<Coating>)]| {
+            cache
+                .iter()
+                .find(|(k, _)| *k == key)
+                .map(|(_, c)| c.clone())
+        };
+        let lock = || COATINGS.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(c) = find(&lock()) {
+            return c;
         }
+        // Computed without holding the lock (the computation runs on rayon's pool,
+        // which may be running other constructions); the first one stored wins.
         let c = Arc::new(Coating::compute(distribution, alpha, eta));
+        let mut cache = lock();
+        if let Some(existing) = find(&cache) {
+            return existing;
+        }
         cache.push((key, c.clone()));
         c
     }
@@ -225,33 +238,42 @@ impl Coating {
         let mf = Microfacet::isotropic(alpha).with_distribution(distribution);
         let outer = gauss_legendre_01(32);
         let inner = gauss_legendre_01(128);
+        // One row per tabulated cosine, in parallel (Beckmann's visible normals are
+        // costly to sample); each row's sum has a fixed order, so the result does not
+        // depend on the thread count.
+        let rows: Vec<(f32, f64)> = (0..TABLE_SIZE)
+            .into_par_iter()
+            .map(|i| {
+                let mu = (i as f32 / (TABLE_SIZE - 1) as f32).max(1e-6);
+                let wo = Vec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
+                let t = visible_normal_mean(&mf, wo, &outer, |m| {
+                    // Refraction into the coating through the microfacet m.
+                    let (f, cos_t) = fresnel_dielectric_cos(wo.dot(m), eta);
+                    if f >= 1.0 {
+                        return 0.0;
+                    }
+                    let wt = refract(wo, m, eta, cos_t);
+                    if wt.z >= 0.0 {
+                        return 0.0;
+                    }
+                    (1.0 - f) * mf.g1(wt, m)
+                });
+                let r = visible_normal_mean(&mf, wo, &inner, |m| {
+                    // Reflection inside the coating (relative index 1/η).
+                    let wr = reflect(wo, m);
+                    if wr.z <= 0.0 {
+                        return 0.0;
+                    }
+                    fresnel_dielectric_cos(wo.dot(m), 1.0 / eta).0 * mf.g1(wr, m)
+                });
+                (t as f32, r * mu as f64)
+            })
+            .collect();
         let mut transmittance = [0.0f32; TABLE_SIZE];
-        let mut internal = 0.0f64;
-        for (i, t) in transmittance.iter_mut().enumerate() {
-            let mu = (i as f32 / (TABLE_SIZE - 1) as f32).max(1e-6);
-            let wo = Vec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
-            *t = visible_normal_mean(&mf, wo, &outer, |m| {
-                // Refraction into the coating through the microfacet m.
-                let (f, cos_t) = fresnel_dielectric_cos(wo.dot(m), eta);
-                if f >= 1.0 {
-                    return 0.0;
-                }
-                let wt = refract(wo, m, eta, cos_t);
-                if wt.z >= 0.0 {
-                    return 0.0;
-                }
-                (1.0 - f) * mf.g1(wt, m)
-            }) as f32;
-            let r = visible_normal_mean(&mf, wo, &inner, |m| {
-                // Reflection inside the coating (relative index 1/η).
-                let wr = reflect(wo, m);
-                if wr.z <= 0.0 {
-                    return 0.0;
-                }
-                fresnel_dielectric_cos(wo.dot(m), 1.0 / eta).0 * mf.g1(wr, m)
-            });
-            internal += r * mu as f64;
+        for (t, row) in transmittance.iter_mut().zip(&rows) {
+            *t = row.0;
         }
+        let internal: f64 = rows.iter().map(|row| row.1).sum();
         Coating {
             transmittance,
             internal_reflectance: (2.0 * internal / TABLE_SIZE as f64) as f32,
