@@ -42,8 +42,9 @@
 //!   becomes our roughness `sqrt(alpha)`, with Mitsuba's default `beckmann` distribution
 //!   or `ggx`. Named conductors (`material`) use the RGB (η, k) that Mitsuba's RGB
 //!   variants derive from its spectral tables ([`fresnel::MITSUBA_METALS`]).
-//!   `roughplastic` is rendered as a smooth `plastic`. `principled` maps `base_color`,
-//!   `roughness`, `metallic`, `specular` (other parameters are errors).
+//!   `roughplastic` takes the same `alpha` (isotropic only) and `distribution`.
+//!   `principled` maps `base_color`, `roughness`, `metallic`, `specular` (other
+//!   parameters are errors).
 //!   `twosided` with two different BSDFs is unsupported.
 //! - Emitters: `directional` `direction` is where the light travels (negated for ours).
 //!   `envmap` follows Mitsuba's lat-long mapping: a local direction d reads
@@ -72,7 +73,7 @@ use crate::light::{
 use crate::material::microfacet::Distribution;
 use crate::material::{
     fresnel, Blend, ComplexIor, Conductor, Dielectric, Diffuse, Material, NormalMap, OneSided,
-    Plastic, Principled, RoughConductor, RoughDielectric, ThinDielectric, TwoSided,
+    Plastic, Principled, RoughConductor, RoughDielectric, RoughPlastic, ThinDielectric, TwoSided,
 };
 use crate::math::Transform;
 use crate::sampling::{IndependentSampler, Sampler};
@@ -1431,17 +1432,26 @@ impl Builder {
             }
             Some(t @ ("plastic" | "roughplastic")) => {
                 self.check_children(node, &["texture"])?;
-                if t == "roughplastic" {
-                    // Rendered as a smooth plastic (an approximation).
-                    node.float("alpha")?;
-                    node.string("distribution");
-                    node.bool_or("sample_visible", true)?;
-                }
                 let diffuse = self.slot(node, "diffuse_reflectance", Vec3::splat(0.5))?;
                 let specular = self.slot(node, "specular_reflectance", Vec3::ONE)?;
                 let eta = self.eta(node, 1.49)?;
                 let nonlinear = node.bool_or("nonlinear", false)?;
-                Material::Plastic(Plastic::new(diffuse, specular, eta, nonlinear))
+                if t == "plastic" {
+                    Material::Plastic(Plastic::new(diffuse, specular, eta, nonlinear))
+                } else {
+                    let (roughness, v, distribution) = self.roughness(node)?;
+                    if !Arc::ptr_eq(&roughness, &v) {
+                        return Err(node.error("an anisotropic roughplastic is not supported"));
+                    }
+                    Material::RoughPlastic(RoughPlastic::new(
+                        diffuse,
+                        specular,
+                        eta,
+                        roughness.average().x,
+                        distribution,
+                        nonlinear,
+                    ))
+                }
             }
             Some("principled") => {
                 self.check_children(node, &["texture"])?;
@@ -2061,10 +2071,14 @@ mod tests {
             Some(Material::Dielectric(d)) => assert!((d.ior - 1.5046 / 1.000277).abs() < 1e-6),
             m => panic!("{m:?}"),
         }
-        assert!(matches!(
-            inst[2].material.as_deref(),
-            Some(Material::Plastic(_))
-        ));
+        match inst[2].material.as_deref() {
+            Some(Material::RoughPlastic(p)) => {
+                assert!((p.alpha - 0.3).abs() < 1e-6, "{}", p.alpha);
+                assert_eq!(p.distribution, Distribution::Beckmann);
+                assert!((p.eta - 1.49 / 1.000277).abs() < 1e-6);
+            }
+            m => panic!("{m:?}"),
+        }
         match inst[3].material.as_deref() {
             Some(Material::Blend(b)) => match inner(&b.first) {
                 Material::Diffuse(d) => match &*d.albedo {

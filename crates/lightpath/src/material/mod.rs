@@ -20,6 +20,8 @@
 //! <bsdf type="roughdielectric"><float name="ior" value="1.5"/><float name="roughness" value="0.3"/></bsdf>
 //! <bsdf type="thindielectric"><float name="ior" value="1.5"/></bsdf>
 //! <bsdf type="plastic"><texture name="diffuseReflectance" type="constant" value="0.2,0.4,0.8"/><float name="ior" value="1.5"/></bsdf>
+//! <!-- Mitsuba dialect only: -->
+//! <bsdf type="roughplastic"><rgb name="diffuse_reflectance" value="0.2,0.4,0.8"/><float name="alpha" value="0.1"/></bsdf>
 //! <bsdf type="principled"><texture name="baseColor" type="constant" value="0.8,0.1,0.1"/><float name="roughness" value="0.4"/>
 //!     <float name="metallic" value="0"/><float name="specular" value="0.5"/></bsdf>
 //! <bsdf type="twosided"><bsdf type="plastic"/></bsdf>
@@ -43,6 +45,7 @@ mod plastic;
 mod principled;
 mod rough_conductor;
 mod rough_dielectric;
+mod rough_plastic;
 mod thin_dielectric;
 mod twosided;
 
@@ -59,6 +62,7 @@ pub use plastic::Plastic;
 pub use principled::Principled;
 pub use rough_conductor::RoughConductor;
 pub use rough_dielectric::RoughDielectric;
+pub use rough_plastic::RoughPlastic;
 pub use thin_dielectric::ThinDielectric;
 pub use twosided::TwoSided;
 
@@ -93,6 +97,7 @@ pub enum Material {
     RoughDielectric(RoughDielectric),
     ThinDielectric(ThinDielectric),
     Plastic(Plastic),
+    RoughPlastic(RoughPlastic),
     Principled(Principled),
     TwoSided(TwoSided),
     OneSided(OneSided),
@@ -193,6 +198,7 @@ impl Material {
             Material::RoughDielectric(m) => m.eval(uv, wo, wi),
             Material::ThinDielectric(m) => m.eval(uv, wo, wi),
             Material::Plastic(m) => m.eval(uv, wo, wi),
+            Material::RoughPlastic(m) => m.eval(uv, wo, wi),
             Material::Principled(m) => m.eval(uv, wo, wi),
             Material::TwoSided(m) => m.eval(uv, wo, wi),
             Material::OneSided(m) => m.eval(uv, wo, wi),
@@ -211,6 +217,7 @@ impl Material {
             Material::RoughDielectric(m) => m.pdf(uv, wo, wi),
             Material::ThinDielectric(m) => m.pdf(uv, wo, wi),
             Material::Plastic(m) => m.pdf(uv, wo, wi),
+            Material::RoughPlastic(m) => m.pdf(uv, wo, wi),
             Material::Principled(m) => m.pdf(uv, wo, wi),
             Material::TwoSided(m) => m.pdf(uv, wo, wi),
             Material::OneSided(m) => m.pdf(uv, wo, wi),
@@ -229,6 +236,7 @@ impl Material {
             Material::RoughDielectric(m) => m.sample(uv, wo, u_lobe, u),
             Material::ThinDielectric(m) => m.sample(uv, wo, u_lobe, u),
             Material::Plastic(m) => m.sample(uv, wo, u_lobe, u),
+            Material::RoughPlastic(m) => m.sample(uv, wo, u_lobe, u),
             Material::Principled(m) => m.sample(uv, wo, u_lobe, u),
             Material::TwoSided(m) => m.sample(uv, wo, u_lobe, u),
             Material::OneSided(m) => m.sample(uv, wo, u_lobe, u),
@@ -251,6 +259,7 @@ impl Material {
             Material::RoughDielectric(m) => m.transmittance.eval(uv),
             Material::ThinDielectric(m) => m.transmittance.eval(uv),
             Material::Plastic(m) => m.diffuse.eval(uv),
+            Material::RoughPlastic(m) => m.diffuse.eval(uv),
             Material::Principled(m) => m.base_color.eval(uv),
             Material::TwoSided(m) => m.inner.albedo(uv),
             Material::OneSided(m) => m.inner.albedo(uv),
@@ -271,6 +280,7 @@ impl Material {
             Material::Diffuse(_)
             | Material::RoughConductor(_)
             | Material::Plastic(_)
+            | Material::RoughPlastic(_)
             | Material::Principled(_) => false,
             Material::TwoSided(m) => m.inner.is_delta(),
             Material::OneSided(m) => m.inner.is_delta(),
