@@ -473,9 +473,23 @@ impl<'a> Loader<'a> {
             return Ok(i.clone());
         }
         let what = describe("image", image.index(), image.name());
-        let bytes = match image.source() {
-            ::gltf::image::Source::View { view, .. } => self.view_bytes(&view)?.to_vec(),
-            ::gltf::image::Source::Uri { uri, .. } => self.read_uri(uri, &what)?,
+        // Not `image.source()`: it unwraps a missing `mimeType` or `uri` (a panic found by
+        // fuzzing). The decoder recognises the format from the bytes.
+        let json = &self.doc.as_json().images[image.index()];
+        let bytes = match (&json.buffer_view, &json.uri) {
+            (Some(view), _) => {
+                let view = self.doc.views().nth(view.value()).ok_or_else(|| {
+                    self.error(format!(
+                        "{what} refers to a missing buffer view {}",
+                        view.value()
+                    ))
+                })?;
+                self.view_bytes(&view)?.to_vec()
+            }
+            (None, Some(uri)) => self.read_uri(uri, &what)?,
+            (None, None) => {
+                return Err(self.error(format!("{what} has neither a uri nor a bufferView")))
+            }
         };
         let transfer = match space {
             ColorSpace::Srgb => Transfer::Srgb,
