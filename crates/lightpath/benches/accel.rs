@@ -340,7 +340,8 @@ fn read_rays(path: &Path) -> Result<Vec<Ray>, String> {
 }
 
 fn workspace_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    root.canonicalize().unwrap_or(root)
 }
 
 /// `$var` (relative to the workspace root), else the first default that exists, else
