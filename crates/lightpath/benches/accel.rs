@@ -18,7 +18,9 @@
 //! | `RAYON_NUM_THREADS`       | threads of the multi-threaded passes                  | all cores |
 //!
 //! Relative paths are taken from the workspace root. A missing mesh or ray folder (a
-//! fresh clone has no `../shared`) prints `skipped: …` and exits 0.
+//! fresh clone has no `../shared`) prints `skipped: …` and exits 0. Without the
+//! `--bench` argument that `cargo bench` passes (e.g. under `cargo test --benches`) it
+//! makes a smoke run: 4096 rays of each set (every k-th ray), one pass.
 //!
 //! What is compared, and how:
 //! - **lightpath**: `TriangleMesh::new(data, false, kind)` and its `intersect` /
@@ -68,6 +70,9 @@ const SETS: [(&str, bool); 4] = [
 
 /// Rays per rayon task in the multi-threaded passes.
 const CHUNK: usize = 1024;
+
+/// Rays per set in a smoke run (without `--bench`, as under `cargo test --benches`).
+const SMOKE_RAYS: usize = 4096;
 
 /// Relative disagreement (hits, mean distance) that is flagged.
 const TOLERANCE: f64 = 1e-3;
@@ -402,6 +407,9 @@ fn main() {
             PathBuf::from("/tmp/rays_bunny"),
         ],
     );
+    // `cargo bench` passes `--bench`; without it (`cargo test --benches`) this is a quick
+    // smoke run: one pass over a few rays of each set.
+    let smoke = !std::env::args().any(|a| a == "--bench");
     let reps: usize = match std::env::var("LIGHTPATH_BENCH_REPS") {
         Ok(v) => match v.parse() {
             Ok(n) if n > 0 => n,
@@ -409,6 +417,7 @@ fn main() {
                 "LIGHTPATH_BENCH_REPS={v}: expected a positive integer"
             )),
         },
+        Err(_) if smoke => 1,
         Err(_) => 5,
     };
     let kinds: Vec<(String, AccelKind)> = list_from_env("LIGHTPATH_BENCH_ACCELS", "bvh2,bvh4")
@@ -449,7 +458,14 @@ fn main() {
     for (name, occluded) in SETS {
         let path = rays_dir.join(format!("{name}.rays"));
         if path.is_file() {
-            sets.push((name, occluded, read_rays(&path).unwrap_or_else(|e| fail(e))));
+            let mut rays = read_rays(&path).unwrap_or_else(|e| fail(e));
+            if smoke && rays.len() > SMOKE_RAYS {
+                // Every k-th ray, so the subset spans the whole set (the primary rays'
+                // first tiles miss the mesh).
+                let step = rays.len() / SMOKE_RAYS;
+                rays = rays.into_iter().step_by(step).take(SMOKE_RAYS).collect();
+            }
+            sets.push((name, occluded, rays));
         }
     }
     if sets.is_empty() {
@@ -461,6 +477,11 @@ fn main() {
     let data = lightpath::io::load_mesh(&mesh_path)
         .unwrap_or_else(|e| fail(format!("{}: {e}", mesh_path.display())));
     let threads = rayon::current_num_threads();
+    if smoke {
+        println!(
+            "smoke run (no --bench argument): {SMOKE_RAYS} rays per set, {reps} pass; `cargo bench` times properly"
+        );
+    }
     println!(
         "mesh {} ({} triangles), rays {} ({}), {reps} timed passes after a warm-up, MT = {threads} threads",
         mesh_path.display(),
