@@ -14,7 +14,7 @@ import subprocess
 import sys
 
 HERE = pathlib.Path(__file__).resolve().parent
-SCENES = ["box", "materials", "lights"]
+SCENES = ["box", "materials", "lights", "plastics"]
 SPP = 16384
 
 

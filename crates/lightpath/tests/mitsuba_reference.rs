@@ -6,12 +6,13 @@
 //! compare.py`, mean over pixels and channels of (t − r)² / (r² + 0.01); a scene passes
 //! when it is below 1e-3 and the mean brightness is within 1% of the reference's.
 //!
-//! The scenes cover: analytic shapes (rectangle, cube, sphere, open cylinder, disk), area,
+//! The scenes cover: `shapegroup` + `instance`, analytic shapes (rectangle, cube, sphere, open cylinder, disk), area,
 //! point, spot, directional and constant emitters, perspective (horizontal and vertical
 //! fov, 4:3 and 9:5 films) and orthographic sensors, Gaussian (Mitsuba's default), tent
 //! and box reconstruction filters, `path` (with `max_depth` and `rr_depth`) and `direct`
 //! integrators, and the BSDFs diffuse, conductor, roughconductor (Beckmann and GGX,
-//! isotropic and anisotropic), plastic, dielectric, roughdielectric, thindielectric,
+//! isotropic and anisotropic), plastic, roughplastic (Beckmann and GGX, nonlinear),
+//! one-sided diffuse seen from behind, dielectric, roughdielectric, thindielectric,
 //! blendbsdf, twosided and normalmap, with checkerboard and bitmap textures.
 
 use lightpath::film::{Image, ImageErrors};
@@ -89,13 +90,19 @@ fn materials_match_mitsuba() {
 }
 
 #[test]
+fn plastics_match_mitsuba() {
+    check("plastics", 512);
+}
+
+#[test]
 fn lights_match_mitsuba() {
     check("lights", 512);
 }
 
 /// The comparison can fail: the box rendered with a box filter instead of Mitsuba's
-/// default Gaussian, and the lights scene with its bitmap read upside down (Mitsuba's
-/// v convention undone by a `to_uv` mirror), are both caught.
+/// default Gaussian, the plastics with a one-sided panel made two-sided, and the lights
+/// scene with its bitmap read upside down (Mitsuba's v convention undone by a `to_uv`
+/// mirror) are all caught.
 #[test]
 fn the_comparison_catches_a_wrong_convention() {
     for (name, what, from, to, spp) in [
@@ -105,6 +112,14 @@ fn the_comparison_catches_a_wrong_convention() {
             r#"<integer name="height" value="$res_y"/>"#,
             r#"<integer name="height" value="$res_y"/><rfilter type="box"/>"#,
             1024,
+        ),
+        (
+            "plastics",
+            "the panel seen from behind made two-sided",
+            r#"<bsdf type="diffuse"><rgb name="reflectance" value="0.9, 0.9, 0.2"/></bsdf>"#,
+            r#"<bsdf type="twosided"><bsdf type="diffuse">
+               <rgb name="reflectance" value="0.9, 0.9, 0.2"/></bsdf></bsdf>"#,
+            512,
         ),
         (
             "lights",
