@@ -1007,17 +1007,24 @@ fn default_camera(bounds: &Bounds3) -> Camera {
         )
     };
     let half = (fov_y * 0.5).to_radians();
-    let distance = radius / half.sin() * 1.05;
     let back = Vec3::new(0.0, 0.3, 1.0).normalize();
     let x = Vec3::Y.cross(back).normalize();
     let y = back.cross(x);
-    let world = Mat4::from_cols(
-        x.extend(0.0),
-        y.extend(0.0),
-        back.extend(0.0),
-        (centre + back * distance).extend(1.0),
-    );
-    let render_from_camera = camera_transform(&world).expect("an orthonormal frame");
+    let frame = |centre: Vec3, radius: f32| {
+        let distance = radius / half.sin() * 1.05;
+        let world = Mat4::from_cols(
+            x.extend(0.0),
+            y.extend(0.0),
+            back.extend(0.0),
+            (centre + back * distance).extend(1.0),
+        );
+        camera_transform(&world)
+    };
+    // Bounds near the float range overflow the camera's position (found by fuzzing):
+    // such a scene gets the unit view instead.
+    let render_from_camera = frame(centre, radius)
+        .or_else(|| frame(Vec3::ZERO, 1.0))
+        .expect("the unit view is an orthonormal frame");
     Camera::Perspective(Perspective::new(
         resolution,
         fov_y,
