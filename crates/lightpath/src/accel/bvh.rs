@@ -43,19 +43,39 @@ impl BvhNode {
         }
     }
 
-    /// Slab test; the entry distance or `None`.
+    /// Slab test; the entry distance or `None`. With `AXIS_PARALLEL` (a ray with a zero
+    /// direction component), a ray lying in the plane of a face (0·∞ = NaN) is inside
+    /// that slab; other rays cannot form NaN and skip the check.
     #[inline(always)]
-    fn hit(&self, origin: Vec3, inv_dir: Vec3, t_min: f32, t_max: f32) -> Option<f32> {
+    fn hit<const AXIS_PARALLEL: bool>(
+        &self,
+        origin: Vec3,
+        inv_dir: Vec3,
+        t_min: f32,
+        t_max: f32,
+    ) -> Option<f32> {
         let t0 = (Vec3::from_array(self.min) - origin) * inv_dir;
         let t1 = (Vec3::from_array(self.max) - origin) * inv_dir;
-        // A ray in the plane of a face (0·∞ = NaN) is inside that slab.
-        let on_face = t0.is_nan_mask() | t1.is_nan_mask();
-        let near = Vec3::select(on_face, Vec3::NEG_INFINITY, t0.min(t1));
-        let far = Vec3::select(on_face, Vec3::INFINITY, t0.max(t1));
+        let (near, far) = if AXIS_PARALLEL {
+            let on_face = t0.is_nan_mask() | t1.is_nan_mask();
+            (
+                Vec3::select(on_face, Vec3::NEG_INFINITY, t0.min(t1)),
+                Vec3::select(on_face, Vec3::INFINITY, t0.max(t1)),
+            )
+        } else {
+            (t0.min(t1), t0.max(t1))
+        };
         let tnear = near.max_element().max(t_min);
         let tfar = far.min_element().min(t_max) * ROBUST_FAR;
         (tnear <= tfar).then_some(tnear)
     }
+}
+
+/// Whether a direction has a zero component: only such rays can form 0·∞ = NaN in a
+/// slab test.
+#[inline(always)]
+pub(crate) fn has_zero_component(d: Vec3) -> bool {
+    d.x == 0.0 || d.y == 0.0 || d.z == 0.0
 }
 
 /// Widening of the far slab distance, so rounding never lets a ray slip between boxes
@@ -436,6 +456,20 @@ impl Bvh {
         &self,
         ray: &Ray,
         stats: &mut RayStats,
+        hit: F,
+    ) -> bool {
+        if has_zero_component(ray.direction) {
+            self.intersect_impl::<true, F>(ray, stats, hit)
+        } else {
+            self.intersect_impl::<false, F>(ray, stats, hit)
+        }
+    }
+
+    #[inline(always)]
+    fn intersect_impl<const AXIS_PARALLEL: bool, F: FnMut(u32, &mut f32) -> bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
         mut hit: F,
     ) -> bool {
         let inv_dir = ray.direction.recip();
@@ -447,10 +481,11 @@ impl Bvh {
         }
         let mut stack: [(u32, f32); STACK_SIZE] = [(0, 0.0); STACK_SIZE];
         let mut sp = 0usize;
-        let mut current = match self.nodes[0].hit(origin, inv_dir, ray.t_min, t_max) {
-            Some(_) => 0u32,
-            None => return false,
-        };
+        let mut current =
+            match self.nodes[0].hit::<AXIS_PARALLEL>(origin, inv_dir, ray.t_min, t_max) {
+                Some(_) => 0u32,
+                None => return false,
+            };
         loop {
             // A node counts as visited when it is entered.
             stats.nodes_visited += 1;
@@ -463,8 +498,10 @@ impl Bvh {
                 }
             } else {
                 let l = node.left_or_first;
-                let hl = self.nodes[l as usize].hit(origin, inv_dir, ray.t_min, t_max);
-                let hr = self.nodes[l as usize + 1].hit(origin, inv_dir, ray.t_min, t_max);
+                let hl =
+                    self.nodes[l as usize].hit::<AXIS_PARALLEL>(origin, inv_dir, ray.t_min, t_max);
+                let hr = self.nodes[l as usize + 1]
+                    .hit::<AXIS_PARALLEL>(origin, inv_dir, ray.t_min, t_max);
                 match (hl, hr) {
                     (Some(dl), Some(dr)) => {
                         let (near, far, dfar) = if dl < dr {
@@ -509,6 +546,20 @@ impl Bvh {
         &self,
         ray: &Ray,
         stats: &mut RayStats,
+        blocks: F,
+    ) -> bool {
+        if has_zero_component(ray.direction) {
+            self.occluded_impl::<true, F>(ray, stats, blocks)
+        } else {
+            self.occluded_impl::<false, F>(ray, stats, blocks)
+        }
+    }
+
+    #[inline(always)]
+    fn occluded_impl<const AXIS_PARALLEL: bool, F: FnMut(u32) -> bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
         mut blocks: F,
     ) -> bool {
         let inv_dir = ray.direction.recip();
@@ -518,7 +569,7 @@ impl Bvh {
         let mut stack = [0u32; STACK_SIZE];
         let mut sp = 0usize;
         if self.nodes[0]
-            .hit(ray.origin, inv_dir, ray.t_min, ray.t_max)
+            .hit::<AXIS_PARALLEL>(ray.origin, inv_dir, ray.t_min, ray.t_max)
             .is_none()
         {
             return false;
@@ -539,10 +590,10 @@ impl Bvh {
             } else {
                 let l = node.left_or_first;
                 let hl = self.nodes[l as usize]
-                    .hit(ray.origin, inv_dir, ray.t_min, ray.t_max)
+                    .hit::<AXIS_PARALLEL>(ray.origin, inv_dir, ray.t_min, ray.t_max)
                     .is_some();
                 let hr = self.nodes[l as usize + 1]
-                    .hit(ray.origin, inv_dir, ray.t_min, ray.t_max)
+                    .hit::<AXIS_PARALLEL>(ray.origin, inv_dir, ray.t_min, ray.t_max)
                     .is_some();
                 match (hl, hr) {
                     (true, true) => {

@@ -15,7 +15,7 @@
 //! node's index, or a leaf's first entry in `prim_indices`) and a `u32` count (0 for an
 //! inner node, else the number of primitives; `u32::MAX` for an unused slot).
 
-use super::bvh::{BuildSettings, Bvh};
+use super::bvh::{has_zero_component, BuildSettings, Bvh};
 use super::RayStats;
 use crate::math::{Bounds3, Ray};
 use glam::{Vec3, Vec4};
@@ -217,23 +217,34 @@ impl Bvh4 {
             .collect()
     }
 
-    /// Entry distances of the four children, and a bit mask of those hit.
+    /// Entry distances of the four children, and a bit mask of those hit. With
+    /// `AXIS_PARALLEL` (a ray with a zero direction component), a ray lying in a slab's
+    /// plane (0·∞ = NaN) is inside that slab; other rays cannot form NaN and skip the
+    /// check.
     #[inline(always)]
-    fn hit4(node: &Bvh4Node, o: [Vec4; 3], inv: [Vec4; 3], t_min: f32, t_max: f32) -> (Vec4, u32) {
+    fn hit4<const AXIS_PARALLEL: bool>(
+        node: &Bvh4Node,
+        o: [Vec4; 3],
+        inv: [Vec4; 3],
+        t_min: f32,
+        t_max: f32,
+    ) -> (Vec4, u32) {
         let tx0 = (Vec4::from_array(node.min_x) - o[0]) * inv[0];
         let tx1 = (Vec4::from_array(node.max_x) - o[0]) * inv[0];
         let ty0 = (Vec4::from_array(node.min_y) - o[1]) * inv[1];
         let ty1 = (Vec4::from_array(node.max_y) - o[1]) * inv[1];
         let tz0 = (Vec4::from_array(node.min_z) - o[2]) * inv[2];
         let tz1 = (Vec4::from_array(node.max_z) - o[2]) * inv[2];
-        // A ray lying in a slab's plane with a zero direction component forms 0·∞ = NaN
-        // there: it is inside that slab, which then limits nothing.
         let slab = |t0: Vec4, t1: Vec4| {
-            let on_face = t0.is_nan_mask() | t1.is_nan_mask();
-            (
-                Vec4::select(on_face, Vec4::NEG_INFINITY, t0.min(t1)),
-                Vec4::select(on_face, Vec4::INFINITY, t0.max(t1)),
-            )
+            if AXIS_PARALLEL {
+                let on_face = t0.is_nan_mask() | t1.is_nan_mask();
+                (
+                    Vec4::select(on_face, Vec4::NEG_INFINITY, t0.min(t1)),
+                    Vec4::select(on_face, Vec4::INFINITY, t0.max(t1)),
+                )
+            } else {
+                (t0.min(t1), t0.max(t1))
+            }
         };
         let (x0, x1) = slab(tx0, tx1);
         let (y0, y1) = slab(ty0, ty1);
@@ -268,6 +279,20 @@ impl Bvh4 {
         &self,
         ray: &Ray,
         stats: &mut RayStats,
+        hit: F,
+    ) -> bool {
+        if has_zero_component(ray.direction) {
+            self.intersect_impl::<true, F>(ray, stats, hit)
+        } else {
+            self.intersect_impl::<false, F>(ray, stats, hit)
+        }
+    }
+
+    #[inline(always)]
+    fn intersect_impl<const AXIS_PARALLEL: bool, F: FnMut(u32, &mut f32) -> bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
         mut hit: F,
     ) -> bool {
         if self.prim_indices.is_empty() || !self.root_hit(ray, ray.t_max) {
@@ -299,7 +324,7 @@ impl Bvh4 {
                 continue;
             }
             let node = &self.nodes[e.child as usize];
-            let (near, mask) = Self::hit4(node, o, inv, ray.t_min, t_max);
+            let (near, mask) = Self::hit4::<AXIS_PARALLEL>(node, o, inv, ray.t_min, t_max);
             if mask == 0 {
                 continue;
             }
@@ -340,6 +365,20 @@ impl Bvh4 {
         &self,
         ray: &Ray,
         stats: &mut RayStats,
+        blocks: F,
+    ) -> bool {
+        if has_zero_component(ray.direction) {
+            self.occluded_impl::<true, F>(ray, stats, blocks)
+        } else {
+            self.occluded_impl::<false, F>(ray, stats, blocks)
+        }
+    }
+
+    #[inline(always)]
+    fn occluded_impl<const AXIS_PARALLEL: bool, F: FnMut(u32) -> bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
         mut blocks: F,
     ) -> bool {
         if self.prim_indices.is_empty() || !self.root_hit(ray, ray.t_max) {
@@ -368,7 +407,7 @@ impl Bvh4 {
                 continue;
             }
             let node = &self.nodes[e.child as usize];
-            let (_, mask) = Self::hit4(node, o, inv, ray.t_min, ray.t_max);
+            let (_, mask) = Self::hit4::<AXIS_PARALLEL>(node, o, inv, ray.t_min, ray.t_max);
             for k in 0..4 {
                 if mask & (1 << k) != 0 && node.count[k] != EMPTY {
                     stack[sp] = Entry {
