@@ -36,7 +36,7 @@
 //! `n · dir`); a hit inside a leaf's segment ends the query.
 
 use super::cover::{CoverCuts, CoverNode};
-use super::{widen, RayStats};
+use super::{widen, CellWalk, RayStats};
 use crate::math::{Bounds3, Ray};
 use glam::Vec3;
 use std::time::Instant;
@@ -368,6 +368,30 @@ impl Bsp {
         self.covers.cover(max_boxes)
     }
 
+    /// Closest hit, front to back; see the module docs.
+    #[inline]
+    pub fn intersect<F: FnMut(u32, &mut f32) -> bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
+        hit: F,
+    ) -> bool {
+        self.walk_intersect(ray, stats, hit)
+    }
+
+    /// Any hit: stops at the first blocking primitive.
+    #[inline]
+    pub fn occluded<F: FnMut(u32) -> bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
+        blocks: F,
+    ) -> bool {
+        self.walk_occluded(ray, stats, blocks)
+    }
+}
+
+impl CellWalk for Bsp {
     /// Visits the leaves along the ray front to back; `leaf` tests a leaf's primitives
     /// and returns the distance beyond which no leaf needs visiting (`-∞` to stop).
     #[inline(always)]
@@ -432,48 +456,6 @@ impl Bsp {
                 return;
             }
         }
-    }
-
-    /// Closest hit, front to back; see the module docs.
-    #[inline]
-    pub fn intersect<F: FnMut(u32, &mut f32) -> bool>(
-        &self,
-        ray: &Ray,
-        stats: &mut RayStats,
-        mut hit: F,
-    ) -> bool {
-        let mut t_max = ray.t_max;
-        let mut any = false;
-        self.walk(ray, stats, |prims, stats| {
-            for &p in prims {
-                stats.prims_tested += 1;
-                any |= hit(p, &mut t_max);
-            }
-            widen(t_max)
-        });
-        any
-    }
-
-    /// Any hit: stops at the first blocking primitive.
-    #[inline]
-    pub fn occluded<F: FnMut(u32) -> bool>(
-        &self,
-        ray: &Ray,
-        stats: &mut RayStats,
-        mut blocks: F,
-    ) -> bool {
-        let mut blocked = false;
-        self.walk(ray, stats, |prims, stats| {
-            for &p in prims {
-                stats.prims_tested += 1;
-                if blocks(p) {
-                    blocked = true;
-                    return f32::NEG_INFINITY;
-                }
-            }
-            f32::INFINITY
-        });
-        blocked
     }
 }
 

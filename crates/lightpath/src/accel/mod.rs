@@ -212,6 +212,55 @@ impl Accel {
     }
 }
 
+/// A structure traversed as a walk over cells in ray order (kd-tree, BSP, octree):
+/// `walk` hands each cell's primitives to `leaf`, which returns the distance past which
+/// the walk may stop.
+pub(crate) trait CellWalk {
+    fn walk(&self, ray: &Ray, stats: &mut RayStats, leaf: impl FnMut(&[u32], &mut RayStats) -> f32);
+
+    /// Closest hit: every cell's primitives until a hit lies before the next cell.
+    #[inline]
+    fn walk_intersect<F: FnMut(u32, &mut f32) -> bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
+        mut hit: F,
+    ) -> bool {
+        let mut t_max = ray.t_max;
+        let mut any = false;
+        self.walk(ray, stats, |prims, stats| {
+            for &p in prims {
+                stats.prims_tested += 1;
+                any |= hit(p, &mut t_max);
+            }
+            widen(t_max)
+        });
+        any
+    }
+
+    /// Any hit: stops at the first blocking primitive.
+    #[inline]
+    fn walk_occluded<F: FnMut(u32) -> bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
+        mut blocks: F,
+    ) -> bool {
+        let mut blocked = false;
+        self.walk(ray, stats, |prims, stats| {
+            for &p in prims {
+                stats.prims_tested += 1;
+                if blocks(p) {
+                    blocked = true;
+                    return f32::NEG_INFINITY;
+                }
+            }
+            f32::INFINITY
+        });
+        blocked
+    }
+}
+
 /// Widens a ray distance by a relative 1e-5 (and a tiny absolute amount), so that
 /// rounding in the distances to cell boundaries and split planes never ends a traversal
 /// before a hit that lies just beyond a boundary: the grid, octree, kd-tree and BSP
