@@ -14,9 +14,10 @@ use crate::camera::{Camera, CameraSample};
 use crate::error::{Error, Result};
 use crate::film::Image;
 use crate::integrator::Integrator;
+use crate::math::Ray;
 use crate::sampling::Sampler;
 use crate::scene::Scene;
-use glam::{UVec2, Vec2, Vec3};
+use glam::{UVec2, Vec3};
 use rayon::prelude::*;
 use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -180,6 +181,30 @@ impl Schedule {
 }
 
 impl Renderer<'_> {
+    /// The camera ray of the pixel's current sample: its film position drawn from the
+    /// scene's pixel filter, then cut to the scene's near and far clip distances (along
+    /// the camera's viewing axis) when it has them.
+    #[inline]
+    fn camera_ray(&self, pixel: UVec2, sampler: &mut Sampler) -> Option<Ray> {
+        let film = self.scene.filter.film_position(
+            pixel.as_vec2(),
+            sampler.next_2d(),
+            self.camera.resolution().as_vec2(),
+        );
+        let lens = sampler.next_2d();
+        let mut ray = self.camera.generate_ray(&CameraSample { film, lens })?;
+        if let Some((near, far)) = self.scene.clip {
+            let forward = self.camera.render_from_camera().vector(Vec3::Z).normalize();
+            let cos = ray.direction.dot(forward);
+            if cos <= 0.0 {
+                return None;
+            }
+            ray.t_min = ray.t_min.max(near / cos);
+            ray.t_max = ray.t_max.min(far / cos);
+        }
+        Some(ray)
+    }
+
     /// Renders the image. `progress` is called with the fraction done (0 to 1) from the
     /// worker threads as tiles complete.
     pub fn render(&self, progress: &(dyn Fn(f64) + Sync)) -> Result<(Image, RenderStats)> {
@@ -356,7 +381,6 @@ impl Renderer<'_> {
         let mut sampler = self.sampler.clone();
         let mut pixels = Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize);
         let mut stats = RenderStats::default();
-        let filter = self.scene.filter;
         for y in y0..y1 {
             for x in x0..x1 {
                 if let Some(deadline) = job.deadline {
@@ -373,13 +397,7 @@ impl Renderer<'_> {
                 let mut sum = sums[y as usize * res.x as usize + x as usize];
                 for index in job.first..job.first + job.count {
                     sampler.start_pixel_sample(pixel, index);
-                    let film = filter.film_position(
-                        Vec2::new(x as f32, y as f32),
-                        sampler.next_2d(),
-                        res.as_vec2(),
-                    );
-                    let lens = sampler.next_2d();
-                    let value = match self.camera.generate_ray(&CameraSample { film, lens }) {
+                    let value = match self.camera_ray(pixel, &mut sampler) {
                         Some(ray) => {
                             stats.camera_rays += 1;
                             self.integrator
@@ -441,10 +459,7 @@ impl Renderer<'_> {
                         let (mut depth, mut hits) = (0.0f64, 0u32);
                         for index in 0..spp {
                             sampler.start_pixel_sample(pixel, index);
-                            let film = Vec2::new(x as f32, y as f32) + sampler.next_2d();
-                            let lens = sampler.next_2d();
-                            let Some(ray) = self.camera.generate_ray(&CameraSample { film, lens })
-                            else {
+                            let Some(ray) = self.camera_ray(pixel, &mut sampler) else {
                                 continue;
                             };
                             if let Some(hit) = crate::integrator::first_hit(self.scene, &ray) {

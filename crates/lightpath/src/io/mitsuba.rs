@@ -25,8 +25,9 @@
 //! # Conventions and approximations
 //! - Cameras: Mitsuba's camera space has +x to the image *left* and +y *up*; ours has +x
 //!   right and +y down, so the sensor's `to_world` is preceded by a 180° turn about z.
-//!   `fov_axis` `smaller`/`larger` pick x or y from the film size. `near_clip`,
-//!   `far_clip` are read and ignored.
+//!   `fov_axis` `smaller`/`larger` pick x or y from the film size. Camera rays start at
+//!   `near_clip` and end at `far_clip` (defaults 0.01 and 10⁴), measured along the
+//!   viewing axis as Mitsuba measures them.
 //! - Films: `hdrfilm` `width`/`height` (defaults 768×576). `rfilter` `box`, `tent`
 //!   (`radius`) and `gaussian` (`stddev`; the default filter, as in Mitsuba) are applied
 //!   by filter importance sampling ([`Filter`]); other filters are errors.
@@ -525,7 +526,7 @@ impl Builder {
                 clamp: None,
             }),
         };
-        let (camera, sampler, filter) =
+        let (camera, sampler, filter, clip) =
             sensor.ok_or_else(|| root.error("the scene has no <sensor>"))?;
         let mut scene = Scene::new(
             instances,
@@ -533,6 +534,7 @@ impl Builder {
             self.options.accel.unwrap_or_default(),
         );
         scene.filter = filter;
+        scene.clip = Some(clip);
         let weights = vec![1.0; lights.len()];
         scene
             .set_lights(lights, &weights)
@@ -673,7 +675,9 @@ impl Builder {
         }
     }
 
-    fn sensor(&mut self, node: &Node) -> Result<(Camera, Sampler, Filter)> {
+    /// The camera, its sampler, its film's pixel filter and its near and far clip
+    /// distances.
+    fn sensor(&mut self, node: &Node) -> Result<(Camera, Sampler, Filter, (f32, f32))> {
         self.check_children(node, &["transform", "film", "sampler"])?;
         let film = self.single(node, "film")?;
         let (resolution, filter) = match &film {
@@ -687,8 +691,14 @@ impl Builder {
         // Mitsuba's camera space: +x left, +y up; ours: +x right, +y down.
         let flip = Transform::scale(Vec3::new(-1.0, -1.0, 1.0)).expect("non-zero scale");
         let render_from_camera = flip.then(&self.to_world(node)?);
-        node.float("near_clip")?;
-        node.float("far_clip")?;
+        // Mitsuba's defaults; rays start and end at these distances along the view axis.
+        let near = node.float_or("near_clip", 1e-2)?;
+        let far = node.float_or("far_clip", 1e4)?;
+        if !(near > 0.0 && far > near && far.is_finite()) {
+            return Err(node.error(format!(
+                "need 0 < near_clip < far_clip, got {near} and {far}"
+            )));
+        }
         let axis = |node: &Node| -> Result<FovAxis> {
             let name = node.string_or("fov_axis", "x");
             let smaller_is_x = resolution.x <= resolution.y;
@@ -757,7 +767,7 @@ impl Builder {
             _ => return Err(unknown_type(node, SENSORS)),
         };
         self.check_used(node)?;
-        Ok((camera, sampler, filter))
+        Ok((camera, sampler, filter, (near, far)))
     }
 
     /// The film's size and reconstruction filter (Mitsuba's default: a Gaussian).
@@ -1649,6 +1659,51 @@ mod tests {
             Material::OneSided(o) => &o.inner,
             m => m,
         }
+    }
+
+    /// Camera rays start at `near_clip` and end at `far_clip`: a sphere nearer than the
+    /// near plane is not seen, the wall behind it is; a far plane before the wall hides it.
+    #[test]
+    fn near_and_far_clip_cut_camera_rays() {
+        let centre_depth = |clip: &str| {
+            let xml = format!(
+                r#"<scene version="3.0.0">
+                <integrator type="aov"><string name="aovs" value="dd:depth"/></integrator>
+                <sensor type="perspective"><float name="fov" value="30"/>{clip}
+                    <transform name="to_world"><lookat origin="0,0,0" target="0,0,1" up="0,1,0"/></transform>
+                    <sampler type="independent"><integer name="sample_count" value="1"/></sampler>
+                    <film type="hdrfilm"><integer name="width" value="9"/><integer name="height" value="9"/>
+                        <rfilter type="box"/></film>
+                </sensor>
+                <shape type="sphere"><float name="radius" value="0.5"/><point name="center" x="0" y="0" z="2"/></shape>
+                <shape type="rectangle"><transform name="to_world"><scale value="10"/><translate z="5"/></transform></shape>
+                </scene>"#
+            );
+            let loaded = load(&xml, &[]).unwrap();
+            let renderer = crate::render::Renderer {
+                scene: &loaded.scene,
+                camera: loaded.scene.camera.as_ref().unwrap(),
+                integrator: &loaded.integrator,
+                sampler: &loaded.sampler,
+            };
+            renderer.render(&|_| {}).unwrap().0.get(4, 4).x
+        };
+        let plain = centre_depth("");
+        assert!((plain - 1.5).abs() < 0.05, "{plain}");
+        let near = centre_depth(r#"<float name="near_clip" value="3"/>"#);
+        assert!((near - 5.0).abs() < 0.05, "{near}");
+        let far = centre_depth(
+            r#"<float name="far_clip" value="4"/><float name="near_clip" value="3"/>"#,
+        );
+        assert_eq!(far, 0.0);
+        assert!(load(
+            &scene_with("").replace(
+                "<float name=\"fov\" value=\"60\"/>",
+                "<float name=\"near_clip\" value=\"-1\"/>"
+            ),
+            &[]
+        )
+        .is_err());
     }
 
     /// Diffuse, conductor and rough conductor are black from behind, as in Mitsuba;

@@ -110,6 +110,9 @@ pub struct Scene {
     pub camera: Option<Camera>,
     /// The film's pixel reconstruction filter.
     pub filter: crate::film::Filter,
+    /// Near and far clip distances along the camera's viewing axis (Mitsuba's
+    /// `near_clip`/`far_clip`); `None`: no clipping.
+    pub clip: Option<(f32, f32)>,
     bounds: Bounds3,
     /// Lights for next-event estimation and the environment.
     pub lights: Vec<Light>,
@@ -156,6 +159,7 @@ impl Scene {
             merged,
             camera,
             filter: crate::film::Filter::Box,
+            clip: None,
             bounds,
             lights: Vec::new(),
             light_sampler,
