@@ -145,9 +145,9 @@ impl Accel {
             Accel::Bvh(a) => a.intersect(ray, stats, hit),
             Accel::Bvh4(a) => a.intersect(ray, stats, hit),
             Accel::Grid(a) => a.intersect(ray, stats, hit),
-            Accel::Octree(a) => a.intersect(ray, stats, hit),
-            Accel::KdTree(a) => a.intersect(ray, stats, hit),
-            Accel::Bsp(a) => a.intersect(ray, stats, hit),
+            Accel::Octree(a) => a.walk_intersect(ray, stats, hit),
+            Accel::KdTree(a) => a.walk_intersect(ray, stats, hit),
+            Accel::Bsp(a) => a.walk_intersect(ray, stats, hit),
         }
     }
 
@@ -164,9 +164,9 @@ impl Accel {
             Accel::Bvh(a) => a.occluded(ray, stats, blocks),
             Accel::Bvh4(a) => a.occluded(ray, stats, blocks),
             Accel::Grid(a) => a.occluded(ray, stats, blocks),
-            Accel::Octree(a) => a.occluded(ray, stats, blocks),
-            Accel::KdTree(a) => a.occluded(ray, stats, blocks),
-            Accel::Bsp(a) => a.occluded(ray, stats, blocks),
+            Accel::Octree(a) => a.walk_occluded(ray, stats, blocks),
+            Accel::KdTree(a) => a.walk_occluded(ray, stats, blocks),
+            Accel::Bsp(a) => a.walk_occluded(ray, stats, blocks),
         }
     }
 

@@ -227,28 +227,6 @@ impl Octree {
     pub fn cover(&self, max_boxes: usize) -> Vec<Bounds3> {
         self.covers.cover(max_boxes)
     }
-
-    /// Closest hit, front to back; see the module docs.
-    #[inline]
-    pub fn intersect<F: FnMut(u32, &mut f32) -> bool>(
-        &self,
-        ray: &Ray,
-        stats: &mut RayStats,
-        hit: F,
-    ) -> bool {
-        self.walk_intersect(ray, stats, hit)
-    }
-
-    /// Any hit: stops at the first blocking primitive.
-    #[inline]
-    pub fn occluded<F: FnMut(u32) -> bool>(
-        &self,
-        ray: &Ray,
-        stats: &mut RayStats,
-        blocks: F,
-    ) -> bool {
-        self.walk_occluded(ray, stats, blocks)
-    }
 }
 
 impl CellWalk for Octree {
