@@ -26,9 +26,9 @@ pub struct BenchArgs {
     /// `embree-bench gen-rays MESH --outdir DIR`); missing sets are skipped.
     #[arg(long)]
     pub rays: PathBuf,
-    /// Accelerators to measure (repeatable): list, bvh2, bvh4, bvh-course, grid, octree,
+    /// Accelerators to measure (repeatable): list, bvh2, bvh4, bvh8, bvh-course, grid, octree,
     /// kdtree, bsp.
-    #[arg(long, default_values_t = vec!["bvh2".to_string(), "bvh4".to_string()],
+    #[arg(long, default_values_t = vec!["bvh2".to_string(), "bvh4".to_string(), "bvh8".to_string()],
           value_parser = crate::names::ACCELS)]
     pub accel: Vec<String>,
     /// Timed passes (after one warm-up).
@@ -135,7 +135,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
             mesh = Some(m);
         }
         let mesh = mesh.expect("built");
-        let bytes = mesh.accel.memory_bytes();
+        let bytes = mesh.accel_memory_bytes();
         if let Some(path) = &args.heatmap {
             let Some((_, _, rays)) = sets.iter().find(|(set, ..)| *set == "primary") else {
                 bail!(

@@ -8,6 +8,8 @@
 
 pub mod bsp;
 pub mod bvh;
+mod bvh8;
+mod collapse;
 mod cover;
 pub mod grid;
 pub mod kdtree;
@@ -19,6 +21,7 @@ mod wide_bvh;
 
 pub use bsp::{Bsp, BspNode};
 pub use bvh::{Bvh, BvhNode, BvhStats};
+pub use bvh8::{Bvh8, Bvh8Node};
 pub use grid::Grid;
 pub use kdtree::{KdNode, KdTree};
 pub use list::ListAccel;
@@ -53,6 +56,8 @@ pub enum AccelKind {
     BvhCourse,
     /// The binary SAH tree collapsed into 4-wide nodes tested with SIMD.
     Bvh4,
+    /// The binary SAH tree collapsed into 8-wide nodes tested with AVX2.
+    Bvh8,
     /// Uniform grid traversed by 3D-DDA, with per-ray mailboxing.
     Grid,
     /// Octree split at node centres, traversed front to back.
@@ -69,6 +74,7 @@ impl AccelKind {
         "bvh2",
         "bvh",
         "bvh4",
+        "bvh8",
         "bvh-course",
         "grid",
         "octree",
@@ -82,6 +88,7 @@ impl AccelKind {
             "bvh" | "bvh2" => Some(AccelKind::Bvh2),
             "bvh-course" => Some(AccelKind::BvhCourse),
             "bvh4" => Some(AccelKind::Bvh4),
+            "bvh8" => Some(AccelKind::Bvh8),
             "grid" => Some(AccelKind::Grid),
             "octree" => Some(AccelKind::Octree),
             "kdtree" => Some(AccelKind::KdTree),
@@ -97,6 +104,7 @@ pub enum Accel {
     List(ListAccel),
     Bvh(Bvh),
     Bvh4(Bvh4),
+    Bvh8(Bvh8),
     Grid(Grid),
     Octree(Octree),
     KdTree(KdTree),
@@ -111,6 +119,7 @@ impl Accel {
             AccelKind::Bvh2 => Accel::Bvh(Bvh::build(bounds, &bvh::BuildSettings::default())),
             AccelKind::BvhCourse => Accel::Bvh(Bvh::build(bounds, &bvh::BuildSettings::COURSE)),
             AccelKind::Bvh4 => Accel::Bvh4(Bvh4::build(bounds, &bvh::BuildSettings::default())),
+            AccelKind::Bvh8 => Accel::Bvh8(Bvh8::build(bounds, &bvh::BuildSettings::default())),
             AccelKind::Grid => Accel::Grid(Grid::build(bounds)),
             AccelKind::Octree => Accel::Octree(Octree::build(bounds)),
             AccelKind::KdTree => Accel::KdTree(KdTree::build(bounds)),
@@ -124,6 +133,7 @@ impl Accel {
             Accel::List(a) => a.bounds(),
             Accel::Bvh(a) => a.bounds(),
             Accel::Bvh4(a) => a.bounds(),
+            Accel::Bvh8(a) => a.bounds(),
             Accel::Grid(a) => a.bounds(),
             Accel::Octree(a) => a.bounds(),
             Accel::KdTree(a) => a.bounds(),
@@ -144,6 +154,7 @@ impl Accel {
             Accel::List(a) => a.intersect(ray, stats, hit),
             Accel::Bvh(a) => a.intersect(ray, stats, hit),
             Accel::Bvh4(a) => a.intersect(ray, stats, hit),
+            Accel::Bvh8(a) => a.intersect(ray, stats, hit),
             Accel::Grid(a) => a.intersect(ray, stats, hit),
             Accel::Octree(a) => a.walk_intersect(ray, stats, hit),
             Accel::KdTree(a) => a.walk_intersect(ray, stats, hit),
@@ -163,10 +174,53 @@ impl Accel {
             Accel::List(a) => a.occluded(ray, stats, blocks),
             Accel::Bvh(a) => a.occluded(ray, stats, blocks),
             Accel::Bvh4(a) => a.occluded(ray, stats, blocks),
+            Accel::Bvh8(a) => a.occluded(ray, stats, blocks),
             Accel::Grid(a) => a.occluded(ray, stats, blocks),
             Accel::Octree(a) => a.walk_occluded(ray, stats, blocks),
             Accel::KdTree(a) => a.walk_occluded(ray, stats, blocks),
             Accel::Bsp(a) => a.walk_occluded(ray, stats, blocks),
+        }
+    }
+
+    /// For accelerators that hand out whole leaves (the wide BVHs), the primitive at
+    /// every leaf position: leaves start at multiples of 4 and are padded to a multiple
+    /// of 4 by repeating their last primitive. See [`Bvh4::intersect_leaves`].
+    pub fn leaf_order(&self) -> Option<&[u32]> {
+        match self {
+            Accel::Bvh4(a) => Some(a.prim_order()),
+            Accel::Bvh8(a) => Some(a.prim_order()),
+            _ => None,
+        }
+    }
+
+    /// Closest hit by whole leaves (`leaf(first, count, &mut t_max)` over positions of
+    /// [`Accel::leaf_order`]); only for accelerators that have a leaf order.
+    #[inline]
+    pub fn intersect_leaves<F: FnMut(u32, u32, &mut f32) -> bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
+        leaf: F,
+    ) -> bool {
+        match self {
+            Accel::Bvh4(a) => a.intersect_leaves(ray, stats, leaf),
+            Accel::Bvh8(a) => a.intersect_leaves(ray, stats, leaf),
+            _ => unreachable!("intersect_leaves on an accelerator without a leaf order"),
+        }
+    }
+
+    /// Any hit by whole leaves; only for accelerators that have a leaf order.
+    #[inline]
+    pub fn occluded_leaves<F: FnMut(u32, u32) -> bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
+        blocks: F,
+    ) -> bool {
+        match self {
+            Accel::Bvh4(a) => a.occluded_leaves(ray, stats, blocks),
+            Accel::Bvh8(a) => a.occluded_leaves(ray, stats, blocks),
+            _ => unreachable!("occluded_leaves on an accelerator without a leaf order"),
         }
     }
 
@@ -176,6 +230,7 @@ impl Accel {
             Accel::List(a) => a.memory_bytes(),
             Accel::Bvh(a) => a.memory_bytes(),
             Accel::Bvh4(a) => a.memory_bytes(),
+            Accel::Bvh8(a) => a.memory_bytes(),
             Accel::Grid(a) => a.memory_bytes(),
             Accel::Octree(a) => a.memory_bytes(),
             Accel::KdTree(a) => a.memory_bytes(),
@@ -189,6 +244,7 @@ impl Accel {
             Accel::List(_) => 0.0,
             Accel::Bvh(a) => a.stats.build_seconds,
             Accel::Bvh4(a) => a.build_seconds,
+            Accel::Bvh8(a) => a.build_seconds,
             Accel::Grid(a) => a.build_seconds,
             Accel::Octree(a) => a.build_seconds,
             Accel::KdTree(a) => a.build_seconds,
@@ -204,6 +260,7 @@ impl Accel {
             Accel::List(a) => a.cover(max_boxes),
             Accel::Bvh(a) => a.cover(max_boxes),
             Accel::Bvh4(a) => a.cover(max_boxes),
+            Accel::Bvh8(a) => a.cover(max_boxes),
             Accel::Grid(a) => a.cover(max_boxes),
             Accel::Octree(a) => a.cover(max_boxes),
             Accel::KdTree(a) => a.cover(max_boxes),

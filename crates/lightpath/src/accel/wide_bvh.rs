@@ -16,6 +16,7 @@
 //! inner node, else the number of primitives; `u32::MAX` for an unused slot).
 
 use super::bvh::{has_zero_component, BuildSettings, Bvh};
+use super::collapse::{collapse, wide_cover, EMPTY};
 use super::RayStats;
 use crate::math::{Bounds3, Ray};
 use glam::{Vec3, Vec4};
@@ -36,9 +37,6 @@ pub struct Bvh4Node {
 }
 
 const _: () = assert!(std::mem::size_of::<Bvh4Node>() == 128);
-
-/// Marks an unused slot (its box is also placed at +∞).
-const EMPTY: u32 = u32::MAX;
 
 /// Unused slots hold a box at +∞ and the count `EMPTY`; traversal skips them by the
 /// count, since a box at infinity still passes the slab test of a ray with t_max = ∞.
@@ -87,81 +85,62 @@ impl Bvh4 {
         wide
     }
 
-    /// Collapses a binary BVH: each wide node takes the up-to-four descendants found by
-    /// repeatedly opening its largest inner child.
+    /// Collapses a binary BVH into 4-wide nodes ([`super::collapse`]).
     pub fn collapse(bvh: &Bvh) -> Bvh4 {
-        let mut wide = Bvh4 {
-            nodes: Vec::new(),
-            prim_indices: bvh.prim_indices.clone(),
+        let tree = collapse::<4>(bvh);
+        let nodes = tree
+            .nodes
+            .iter()
+            .map(|slots| {
+                let mut n = EMPTY_NODE;
+                for (k, s) in slots.iter().enumerate() {
+                    n.min_x[k] = s.min[0];
+                    n.min_y[k] = s.min[1];
+                    n.min_z[k] = s.min[2];
+                    n.max_x[k] = s.max[0];
+                    n.max_y[k] = s.max[1];
+                    n.max_z[k] = s.max[2];
+                    n.child[k] = s.child;
+                    n.count[k] = s.count;
+                }
+                n
+            })
+            .collect();
+        Bvh4 {
+            nodes,
+            prim_indices: tree.prim_order,
             bounds: bvh.bounds(),
-            root: (0, 0),
+            root: tree.root,
             build_seconds: 0.0,
-        };
-        if bvh.nodes.is_empty() || bvh.prim_indices.is_empty() {
-            return wide;
         }
-        let root = &bvh.nodes[0];
-        wide.root = if root.is_leaf() {
-            (root.left_or_first, root.count)
-        } else {
-            wide.nodes.push(EMPTY_NODE);
-            wide.fill(bvh, 0, 0);
-            (0, 0)
-        };
-        wide
     }
 
-    /// Fills wide node `at` from the binary inner node `node`.
-    fn fill(&mut self, bvh: &Bvh, node: u32, at: usize) {
-        let n = &bvh.nodes[node as usize];
-        let mut slots = vec![n.left_or_first, n.left_or_first + 1];
-        while slots.len() < 4 {
-            // Open the inner child with the largest surface area.
-            let best = slots
-                .iter()
-                .enumerate()
-                .filter(|(_, &s)| !bvh.nodes[s as usize].is_leaf())
-                .max_by(|a, b| {
-                    let sa = bvh.nodes[*a.1 as usize].bounds().surface_area();
-                    let sb = bvh.nodes[*b.1 as usize].bounds().surface_area();
-                    sa.total_cmp(&sb)
-                })
-                .map(|(i, _)| i);
-            let Some(i) = best else { break };
-            let s = slots.swap_remove(i);
-            let c = bvh.nodes[s as usize].left_or_first;
-            slots.push(c);
-            slots.push(c + 1);
-        }
-        let mut out = EMPTY_NODE;
-        let mut inner = Vec::new();
-        for (k, &s) in slots.iter().enumerate() {
-            let b = &bvh.nodes[s as usize];
-            out.min_x[k] = b.min[0];
-            out.min_y[k] = b.min[1];
-            out.min_z[k] = b.min[2];
-            out.max_x[k] = b.max[0];
-            out.max_y[k] = b.max[1];
-            out.max_z[k] = b.max[2];
-            if b.is_leaf() {
-                out.child[k] = b.left_or_first;
-                out.count[k] = b.count;
-            } else {
-                let index = self.nodes.len();
-                self.nodes.push(EMPTY_NODE);
-                out.child[k] = index as u32;
-                out.count[k] = 0;
-                inner.push((s, index));
-            }
-        }
-        self.nodes[at] = out;
-        for (s, index) in inner {
-            self.fill(bvh, s, index);
-        }
+    /// The primitive at every leaf position (leaves padded as [`super::collapse`]
+    /// describes); the positions that [`Bvh4::intersect_leaves`] hands out index it.
+    pub fn prim_order(&self) -> &[u32] {
+        &self.prim_indices
     }
 
     pub fn bounds(&self) -> Bounds3 {
         self.bounds
+    }
+
+    /// Starts loading an inner child's node, whose cache lines are otherwise fetched
+    /// one miss at a time when it is popped.
+    #[inline(always)]
+    fn prefetch(&self, child: u32, count: u32) {
+        #[cfg(target_arch = "x86_64")]
+        if count == 0 {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            let p = self.nodes.as_ptr().wrapping_add(child as usize) as *const i8;
+            // SAFETY: prefetching is a hint and never faults, whatever the address.
+            unsafe {
+                _mm_prefetch::<_MM_HINT_T0>(p);
+                _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = (child, count);
     }
 
     pub fn memory_bytes(&self) -> usize {
@@ -176,45 +155,17 @@ impl Bvh4 {
         if self.nodes.is_empty() {
             return vec![self.bounds];
         }
-        let slot_box = |n: &Bvh4Node, k: usize| {
-            Bounds3::new(
-                Vec3::new(n.min_x[k], n.min_y[k], n.min_z[k]),
-                Vec3::new(n.max_x[k], n.max_y[k], n.max_z[k]),
-            )
-        };
-        // (node, slot) pairs of the current cut.
-        let mut cut: Vec<(usize, usize)> = (0..4)
-            .filter(|&k| self.nodes[0].count[k] != EMPTY)
-            .map(|k| (0, k))
-            .collect();
-        if cut.len() > max_boxes {
-            return vec![self.bounds];
-        }
-        loop {
-            let mut next = Vec::new();
-            let mut opened = false;
-            for &(n, k) in &cut {
-                let node = &self.nodes[n];
-                if node.count[k] == 0 {
-                    let c = node.child[k] as usize;
-                    for j in 0..4 {
-                        if self.nodes[c].count[j] != EMPTY {
-                            next.push((c, j));
-                        }
-                    }
-                    opened = true;
-                } else {
-                    next.push((n, k));
-                }
-            }
-            if !opened || next.len() > max_boxes {
-                break;
-            }
-            cut = next;
-        }
-        cut.iter()
-            .map(|&(n, k)| slot_box(&self.nodes[n], k))
-            .collect()
+        wide_cover(4, max_boxes, |n, k| {
+            let node = &self.nodes[n];
+            (node.count[k] != EMPTY).then(|| {
+                let b = Bounds3::new(
+                    Vec3::new(node.min_x[k], node.min_y[k], node.min_z[k]),
+                    Vec3::new(node.max_x[k], node.max_y[k], node.max_z[k]),
+                );
+                (b, node.child[k], node.count[k])
+            })
+        })
+        .unwrap_or_else(|| vec![self.bounds])
     }
 
     /// Entry distances of the four children, and a bit mask of those hit. With
@@ -279,21 +230,43 @@ impl Bvh4 {
         &self,
         ray: &Ray,
         stats: &mut RayStats,
-        hit: F,
+        mut hit: F,
+    ) -> bool {
+        let prims = &self.prim_indices;
+        self.intersect_leaves(ray, stats, |first, count, t_max| {
+            let mut any = false;
+            for &prim in &prims[first as usize..(first + count) as usize] {
+                any |= hit(prim, t_max);
+            }
+            any
+        })
+    }
+
+    /// Closest hit by whole leaves: `leaf(first, count, &mut t_max)` tests the
+    /// primitives at positions `first..first + count` of [`Bvh4::prim_order`] (`first`
+    /// is a multiple of [`super::collapse::LEAF_ALIGN`], and the padding up to the next multiple repeats
+    /// the leaf's last primitive), lowers `t_max` for a closer hit and returns whether
+    /// it found one.
+    #[inline]
+    pub fn intersect_leaves<F: FnMut(u32, u32, &mut f32) -> bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
+        leaf: F,
     ) -> bool {
         if has_zero_component(ray.direction) {
-            self.intersect_impl::<true, F>(ray, stats, hit)
+            self.intersect_impl::<true, F>(ray, stats, leaf)
         } else {
-            self.intersect_impl::<false, F>(ray, stats, hit)
+            self.intersect_impl::<false, F>(ray, stats, leaf)
         }
     }
 
     #[inline(always)]
-    fn intersect_impl<const AXIS_PARALLEL: bool, F: FnMut(u32, &mut f32) -> bool>(
+    fn intersect_impl<const AXIS_PARALLEL: bool, F: FnMut(u32, u32, &mut f32) -> bool>(
         &self,
         ray: &Ray,
         stats: &mut RayStats,
-        mut hit: F,
+        mut leaf: F,
     ) -> bool {
         if self.prim_indices.is_empty() || !self.root_hit(ray, ray.t_max) {
             return false;
@@ -316,11 +289,8 @@ impl Bvh4 {
             }
             stats.nodes_visited += 1;
             if e.count > 0 {
-                let first = e.child as usize;
-                for &prim in &self.prim_indices[first..first + e.count as usize] {
-                    stats.prims_tested += 1;
-                    any |= hit(prim, &mut t_max);
-                }
+                stats.prims_tested += e.count;
+                any |= leaf(e.child, e.count, &mut t_max);
                 continue;
             }
             let node = &self.nodes[e.child as usize];
@@ -332,6 +302,7 @@ impl Bvh4 {
             let mut nearest: Option<Entry> = None;
             for k in 0..4 {
                 if mask & (1 << k) != 0 && node.count[k] != EMPTY {
+                    self.prefetch(node.child[k], node.count[k]);
                     let entry = Entry {
                         child: node.child[k],
                         count: node.count[k],
@@ -365,6 +336,24 @@ impl Bvh4 {
         &self,
         ray: &Ray,
         stats: &mut RayStats,
+        mut blocks: F,
+    ) -> bool {
+        let prims = &self.prim_indices;
+        self.occluded_leaves(ray, stats, |first, count| {
+            prims[first as usize..(first + count) as usize]
+                .iter()
+                .any(|&prim| blocks(prim))
+        })
+    }
+
+    /// Any hit by whole leaves: `blocks(first, count)` says whether a primitive at the
+    /// positions `first..first + count` of [`Bvh4::prim_order`] blocks the ray (see
+    /// [`Bvh4::intersect_leaves`] for the layout).
+    #[inline]
+    pub fn occluded_leaves<F: FnMut(u32, u32) -> bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
         blocks: F,
     ) -> bool {
         if has_zero_component(ray.direction) {
@@ -375,7 +364,7 @@ impl Bvh4 {
     }
 
     #[inline(always)]
-    fn occluded_impl<const AXIS_PARALLEL: bool, F: FnMut(u32) -> bool>(
+    fn occluded_impl<const AXIS_PARALLEL: bool, F: FnMut(u32, u32) -> bool>(
         &self,
         ray: &Ray,
         stats: &mut RayStats,
@@ -397,12 +386,9 @@ impl Bvh4 {
             let e = stack[sp];
             stats.nodes_visited += 1;
             if e.count > 0 {
-                let first = e.child as usize;
-                for &prim in &self.prim_indices[first..first + e.count as usize] {
-                    stats.prims_tested += 1;
-                    if blocks(prim) {
-                        return true;
-                    }
+                stats.prims_tested += e.count;
+                if blocks(e.child, e.count) {
+                    return true;
                 }
                 continue;
             }

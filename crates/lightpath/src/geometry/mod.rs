@@ -12,6 +12,7 @@ mod plane;
 mod rectangle;
 mod shape;
 mod sphere;
+mod triangle_block;
 
 pub use csg::{Csg, CsgNode, CsgOp, Solid};
 pub use cuboid::Cuboid;
@@ -24,3 +25,4 @@ pub use plane::Plane;
 pub use rectangle::Rectangle;
 pub use shape::{Shape, ShapeHit};
 pub use sphere::Sphere;
+pub use triangle_block::TriangleBlock;

@@ -128,7 +128,7 @@ impl MergedMesh {
     }
 
     pub fn memory_bytes(&self) -> usize {
-        self.mesh.accel.memory_bytes()
+        self.mesh.accel_memory_bytes()
     }
 }
 

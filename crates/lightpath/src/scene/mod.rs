@@ -364,7 +364,7 @@ impl Scene {
                 }
                 if seen.insert(Arc::as_ptr(m)) {
                     r.blas_count += 1;
-                    r.blas_bytes += m.accel.memory_bytes();
+                    r.blas_bytes += m.accel_memory_bytes();
                     r.blas_build_seconds += m.accel.build_seconds();
                     r.blas_triangles += m.triangle_count();
                 }
@@ -381,7 +381,7 @@ impl Scene {
         for inst in &self.instances {
             if let Shape::TriangleMesh(m) = &*inst.shape {
                 if seen.insert(Arc::as_ptr(m)) {
-                    total += m.accel.memory_bytes();
+                    total += m.accel_memory_bytes();
                 }
             }
         }

@@ -1,0 +1,709 @@
+//! An 8-wide BVH: the binary SAH tree collapsed so that every node holds up to eight
+//! children whose boxes are tested against a ray at once, with AVX2 (detected at run
+//! time) or, elsewhere, as two 4-lane halves. Selected with `--accel bvh8`; the default.
+//!
+//! ```xml
+//! <instance>
+//!     <shape type="mesh" filename="bunny.ply"/>   <!-- lightpath render --accel bvh8 -->
+//! </instance>
+//! ```
+//!
+//! Node layout ([`Bvh8Node`], 256 bytes, four cache lines): the six box planes of the
+//! eight children (`planes[0..3]` the minima in x, y, z, `planes[3..6]` the maxima),
+//! then per child a `u32` reference (an inner node's index, or a leaf's first position)
+//! and a `u32` count (0 for an inner node, else the number of primitives; `u32::MAX` for
+//! an unused slot). Leaves are laid out for blocks of four primitives
+//! ([`super::collapse`]), so a triangle mesh tests each leaf with SIMD.
+//!
+//! Traversal, per ray: the near and far plane of each axis are chosen once from the
+//! signs of the direction, so a node test is a subtraction and a multiplication per
+//! plane, then three maxima and minima. The nearest hit child is visited next without
+//! touching the stack; with two hits the farther one is pushed; with more, they are
+//! pushed sorted, nearest on top. Entry distances stay on the stack and entries farther
+//! than the current hit are culled when popped. Pushed inner nodes are prefetched.
+//! Rays with a zero direction component take a variant of the node test in which a ray
+//! lying in a slab's plane (0·∞ = NaN) is inside that slab.
+
+use super::bvh::{has_zero_component, BuildSettings, Bvh};
+use super::collapse::{collapse, wide_cover, EMPTY};
+use super::RayStats;
+use crate::math::{Bounds3, Ray};
+use glam::{Vec3, Vec4};
+use std::mem::MaybeUninit;
+use std::time::Instant;
+
+/// Eight children's boxes and references; see the module docs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C, align(64))]
+pub struct Bvh8Node {
+    pub planes: [[f32; 8]; 6],
+    pub child: [u32; 8],
+    pub count: [u32; 8],
+}
+
+const _: () = assert!(std::mem::size_of::<Bvh8Node>() == 256);
+
+const EMPTY_NODE: Bvh8Node = Bvh8Node {
+    planes: [[f32::INFINITY; 8]; 6],
+    child: [0; 8],
+    count: [EMPTY; 8],
+};
+
+/// Widening of the far slab distance (as in the binary BVH, pbrt's `1 + 2γ(3)`).
+const ROBUST_FAR: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
+
+/// Stack depth: each level pushes at most seven siblings.
+const STACK_SIZE: usize = 7 * 128 + 8;
+
+/// A stack entry: a child slot (inner node or leaf range) and its entry distance.
+#[derive(Clone, Copy)]
+struct Entry {
+    child: u32,
+    count: u32,
+    dist: f32,
+}
+
+/// What a node test needs of a ray.
+struct RayLanes {
+    origin: [f32; 3],
+    inv: [f32; 3],
+    /// Index into `planes` of the near and far plane of each axis.
+    near: [usize; 3],
+    far: [usize; 3],
+}
+
+impl RayLanes {
+    #[inline(always)]
+    fn new(ray: &Ray) -> RayLanes {
+        let inv = ray.direction.recip();
+        let near = [0, 1, 2].map(|a| if inv[a] >= 0.0 { a } else { a + 3 });
+        RayLanes {
+            origin: ray.origin.to_array(),
+            inv: inv.to_array(),
+            near,
+            far: near.map(|p| if p < 3 { p + 3 } else { p - 3 }),
+        }
+    }
+}
+
+/// A node test: writes the entry distances of the eight children and returns the bit
+/// mask of those whose box the ray enters within `[t_min, t_max]`.
+trait NodeTest {
+    fn test<const AXIS_PARALLEL: bool>(
+        node: &Bvh8Node,
+        ray: &RayLanes,
+        t_min: f32,
+        t_max: f32,
+        near: &mut [f32; 8],
+    ) -> u32;
+}
+
+/// Two 4-lane halves (SSE on x86-64, a portable fallback elsewhere).
+struct Portable;
+
+impl NodeTest for Portable {
+    #[inline(always)]
+    fn test<const AXIS_PARALLEL: bool>(
+        node: &Bvh8Node,
+        ray: &RayLanes,
+        t_min: f32,
+        t_max: f32,
+        near: &mut [f32; 8],
+    ) -> u32 {
+        let mut mask = 0;
+        for half in 0..2 {
+            let lanes = |p: usize| Vec4::from_slice(&node.planes[p][4 * half..4 * half + 4]);
+            let (mut lo, mut hi) = (Vec4::splat(t_min), Vec4::splat(t_max));
+            for a in 0..3 {
+                let o = Vec4::splat(ray.origin[a]);
+                let inv = Vec4::splat(ray.inv[a]);
+                let t0 = (lanes(ray.near[a]) - o) * inv;
+                let t1 = (lanes(ray.far[a]) - o) * inv;
+                if AXIS_PARALLEL {
+                    let on_face = t0.is_nan_mask() | t1.is_nan_mask();
+                    lo = lo.max(Vec4::select(on_face, Vec4::NEG_INFINITY, t0.min(t1)));
+                    hi = hi.min(Vec4::select(on_face, Vec4::INFINITY, t0.max(t1)));
+                } else {
+                    lo = lo.max(t0);
+                    hi = hi.min(t1);
+                }
+            }
+            let hit = lo.cmple(hi * ROBUST_FAR).bitmask();
+            lo.write_to_slice(&mut near[4 * half..4 * half + 4]);
+            mask |= hit << (4 * half);
+        }
+        for (k, &c) in node.count.iter().enumerate() {
+            if c == EMPTY {
+                mask &= !(1 << k);
+            }
+        }
+        mask
+    }
+}
+
+/// AVX2, when the processor has it.
+#[cfg(target_arch = "x86_64")]
+struct Avx2;
+
+#[cfg(target_arch = "x86_64")]
+impl NodeTest for Avx2 {
+    #[inline(always)]
+    fn test<const AXIS_PARALLEL: bool>(
+        node: &Bvh8Node,
+        ray: &RayLanes,
+        t_min: f32,
+        t_max: f32,
+        near: &mut [f32; 8],
+    ) -> u32 {
+        // SAFETY: `Avx2` is only used by traversals entered after detecting AVX2.
+        unsafe { avx2_test::<AXIS_PARALLEL>(node, ray, t_min, t_max, near) }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn avx2_test<const AXIS_PARALLEL: bool>(
+    node: &Bvh8Node,
+    ray: &RayLanes,
+    t_min: f32,
+    t_max: f32,
+    near: &mut [f32; 8],
+) -> u32 {
+    use std::arch::x86_64::*;
+    let planes = node.planes.as_ptr() as *const f32;
+    let mut lo = _mm256_set1_ps(t_min);
+    let mut hi = _mm256_set1_ps(t_max);
+    for a in 0..3 {
+        let o = _mm256_set1_ps(ray.origin[a]);
+        let inv = _mm256_set1_ps(ray.inv[a]);
+        // SAFETY: the plane indices are below 6, and nodes are 64-byte aligned, so
+        // each plane is an aligned 32-byte load inside the node.
+        let (pn, pf) = unsafe {
+            (
+                _mm256_load_ps(planes.add(8 * ray.near[a])),
+                _mm256_load_ps(planes.add(8 * ray.far[a])),
+            )
+        };
+        let t0 = _mm256_mul_ps(_mm256_sub_ps(pn, o), inv);
+        let t1 = _mm256_mul_ps(_mm256_sub_ps(pf, o), inv);
+        if AXIS_PARALLEL {
+            let on_face = _mm256_or_ps(
+                _mm256_cmp_ps::<_CMP_UNORD_Q>(t0, t0),
+                _mm256_cmp_ps::<_CMP_UNORD_Q>(t1, t1),
+            );
+            let a0 = _mm256_blendv_ps(
+                _mm256_min_ps(t0, t1),
+                _mm256_set1_ps(f32::NEG_INFINITY),
+                on_face,
+            );
+            let a1 = _mm256_blendv_ps(
+                _mm256_max_ps(t0, t1),
+                _mm256_set1_ps(f32::INFINITY),
+                on_face,
+            );
+            lo = _mm256_max_ps(lo, a0);
+            hi = _mm256_min_ps(hi, a1);
+        } else {
+            lo = _mm256_max_ps(lo, t0);
+            hi = _mm256_min_ps(hi, t1);
+        }
+    }
+    let hit = _mm256_cmp_ps::<_CMP_LE_OQ>(lo, _mm256_mul_ps(hi, _mm256_set1_ps(ROBUST_FAR)));
+    // SAFETY: `count` is 32 bytes at offset 224 of a 64-byte aligned node.
+    let count = unsafe { _mm256_load_si256(node.count.as_ptr() as *const __m256i) };
+    let unused = _mm256_cmpeq_epi32(count, _mm256_set1_epi32(-1));
+    // SAFETY: `near` holds eight floats.
+    unsafe { _mm256_storeu_ps(near.as_mut_ptr(), lo) };
+    (_mm256_movemask_ps(hit) & !_mm256_movemask_ps(_mm256_castsi256_ps(unused))) as u32
+}
+
+#[derive(Debug, Clone)]
+pub struct Bvh8 {
+    pub nodes: Vec<Bvh8Node>,
+    prim_order: Vec<u32>,
+    bounds: Bounds3,
+    /// The root slot: an inner node (count 0) or, for tiny inputs, a leaf.
+    root: (u32, u32),
+    /// Whether the processor has AVX2 (detected at build).
+    avx2: bool,
+    pub build_seconds: f64,
+}
+
+impl Bvh8 {
+    /// Builds the binary SAH tree, then collapses it.
+    pub fn build(boxes: &[Bounds3], settings: &BuildSettings) -> Bvh8 {
+        let start = Instant::now();
+        let bvh = Bvh::build(boxes, settings);
+        let mut wide = Bvh8::collapse(&bvh);
+        wide.build_seconds = start.elapsed().as_secs_f64();
+        wide
+    }
+
+    /// Collapses a binary BVH into 8-wide nodes ([`super::collapse`]).
+    pub fn collapse(bvh: &Bvh) -> Bvh8 {
+        let tree = collapse::<8>(bvh);
+        let nodes = tree
+            .nodes
+            .iter()
+            .map(|slots| {
+                let mut n = EMPTY_NODE;
+                for (k, s) in slots.iter().enumerate() {
+                    for a in 0..3 {
+                        n.planes[a][k] = s.min[a];
+                        n.planes[a + 3][k] = s.max[a];
+                    }
+                    n.child[k] = s.child;
+                    n.count[k] = s.count;
+                }
+                n
+            })
+            .collect();
+        Bvh8 {
+            nodes,
+            prim_order: tree.prim_order,
+            bounds: bvh.bounds(),
+            root: tree.root,
+            avx2: detect_avx2(),
+            build_seconds: 0.0,
+        }
+    }
+
+    /// Uses the portable node test even where AVX2 is available (for tests).
+    #[cfg(test)]
+    fn without_avx2(mut self) -> Bvh8 {
+        self.avx2 = false;
+        self
+    }
+
+    /// The primitive at every leaf position (see [`super::collapse`]); the positions
+    /// that [`Bvh8::intersect_leaves`] hands out index it.
+    pub fn prim_order(&self) -> &[u32] {
+        &self.prim_order
+    }
+
+    pub fn bounds(&self) -> Bounds3 {
+        self.bounds
+    }
+
+    pub fn memory_bytes(&self) -> usize {
+        std::mem::size_of_val(self.nodes.as_slice()) + self.prim_order.len() * 4
+    }
+
+    /// The boxes of the root's children (and theirs, while under `max_boxes`).
+    pub fn cover(&self, max_boxes: usize) -> Vec<Bounds3> {
+        if self.prim_order.is_empty() {
+            return Vec::new();
+        }
+        if self.nodes.is_empty() {
+            return vec![self.bounds];
+        }
+        wide_cover(8, max_boxes, |n, k| {
+            let node = &self.nodes[n];
+            (node.count[k] != EMPTY).then(|| {
+                let p = &node.planes;
+                let b = Bounds3::new(
+                    Vec3::new(p[0][k], p[1][k], p[2][k]),
+                    Vec3::new(p[3][k], p[4][k], p[5][k]),
+                );
+                (b, node.child[k], node.count[k])
+            })
+        })
+        .unwrap_or_else(|| vec![self.bounds])
+    }
+
+    /// Starts loading an inner child's node.
+    #[inline(always)]
+    fn prefetch(&self, child: u32, count: u32) {
+        #[cfg(target_arch = "x86_64")]
+        if count == 0 {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            let p = self.nodes.as_ptr().wrapping_add(child as usize) as *const i8;
+            // SAFETY: prefetching is a hint and never faults, whatever the address.
+            unsafe {
+                for line in 0..4 {
+                    _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64 * line));
+                }
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = (child, count);
+    }
+
+    /// Closest hit, front to back (see [`crate::accel::Accel::intersect`]).
+    #[inline]
+    pub fn intersect<F: FnMut(u32, &mut f32) -> bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
+        mut hit: F,
+    ) -> bool {
+        let prims = &self.prim_order;
+        self.intersect_leaves(ray, stats, |first, count, t_max| {
+            let mut any = false;
+            for &prim in &prims[first as usize..(first + count) as usize] {
+                any |= hit(prim, t_max);
+            }
+            any
+        })
+    }
+
+    /// Any hit: returns at the first primitive that blocks the ray.
+    #[inline]
+    pub fn occluded<F: FnMut(u32) -> bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
+        mut blocks: F,
+    ) -> bool {
+        let prims = &self.prim_order;
+        self.occluded_leaves(ray, stats, |first, count| {
+            prims[first as usize..(first + count) as usize]
+                .iter()
+                .any(|&prim| blocks(prim))
+        })
+    }
+
+    /// Closest hit by whole leaves: `leaf(first, count, &mut t_max)` tests the
+    /// primitives at positions `first..first + count` of [`Bvh8::prim_order`] (`first`
+    /// is a multiple of 4, and the padding up to the next multiple repeats the leaf's
+    /// last primitive), lowers `t_max` for a closer hit and returns whether it found
+    /// one.
+    #[inline]
+    pub fn intersect_leaves<F: FnMut(u32, u32, &mut f32) -> bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
+        leaf: F,
+    ) -> bool {
+        if self.prim_order.is_empty() {
+            return false;
+        }
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: AVX2 was detected when the tree was built.
+            return unsafe { self.intersect_avx2(ray, stats, leaf) };
+        }
+        if has_zero_component(ray.direction) {
+            self.intersect_impl::<Portable, true, F>(ray, stats, leaf)
+        } else {
+            self.intersect_impl::<Portable, false, F>(ray, stats, leaf)
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn intersect_avx2<F: FnMut(u32, u32, &mut f32) -> bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
+        leaf: F,
+    ) -> bool {
+        if has_zero_component(ray.direction) {
+            self.intersect_impl::<Avx2, true, F>(ray, stats, leaf)
+        } else {
+            self.intersect_impl::<Avx2, false, F>(ray, stats, leaf)
+        }
+    }
+
+    /// Any hit by whole leaves: `blocks(first, count)` says whether a primitive at the
+    /// positions `first..first + count` of [`Bvh8::prim_order`] blocks the ray.
+    #[inline]
+    pub fn occluded_leaves<F: FnMut(u32, u32) -> bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
+        blocks: F,
+    ) -> bool {
+        if self.prim_order.is_empty() {
+            return false;
+        }
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: AVX2 was detected when the tree was built.
+            return unsafe { self.occluded_avx2(ray, stats, blocks) };
+        }
+        if has_zero_component(ray.direction) {
+            self.occluded_impl::<Portable, true, F>(ray, stats, blocks)
+        } else {
+            self.occluded_impl::<Portable, false, F>(ray, stats, blocks)
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn occluded_avx2<F: FnMut(u32, u32) -> bool>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
+        blocks: F,
+    ) -> bool {
+        if has_zero_component(ray.direction) {
+            self.occluded_impl::<Avx2, true, F>(ray, stats, blocks)
+        } else {
+            self.occluded_impl::<Avx2, false, F>(ray, stats, blocks)
+        }
+    }
+
+    #[inline(always)]
+    fn intersect_impl<T: NodeTest, const AXIS_PARALLEL: bool, F>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
+        mut leaf: F,
+    ) -> bool
+    where
+        F: FnMut(u32, u32, &mut f32) -> bool,
+    {
+        let lanes = RayLanes::new(ray);
+        let mut t_max = ray.t_max;
+        let mut any = false;
+        let mut stack = [const { MaybeUninit::<Entry>::uninit() }; STACK_SIZE];
+        let mut sp = 0usize;
+        let mut near = [0.0f32; 8];
+        let mut cur = Entry {
+            child: self.root.0,
+            count: self.root.1,
+            dist: ray.t_min,
+        };
+        if cur.count == 0 {
+            // The root box itself: a node's test covers only its children.
+            let (lo, hi) = root_range(self.bounds, ray);
+            if lo > hi {
+                return false;
+            }
+        }
+        loop {
+            stats.nodes_visited += 1;
+            if cur.count > 0 {
+                stats.prims_tested += cur.count;
+                any |= leaf(cur.child, cur.count, &mut t_max);
+            } else {
+                let node = &self.nodes[cur.child as usize];
+                let mask = T::test::<AXIS_PARALLEL>(node, &lanes, ray.t_min, t_max, &mut near);
+                if mask != 0 {
+                    let entry = |k: u32| Entry {
+                        child: node.child[k as usize],
+                        count: node.count[k as usize],
+                        dist: near[k as usize],
+                    };
+                    let a = entry(mask.trailing_zeros());
+                    let rest = mask & (mask - 1);
+                    if rest == 0 {
+                        // One child: descend without the stack.
+                        cur = a;
+                        continue;
+                    }
+                    let b = entry(rest.trailing_zeros());
+                    let rest = rest & (rest - 1);
+                    if rest == 0 {
+                        let (n, f) = if a.dist <= b.dist { (a, b) } else { (b, a) };
+                        self.prefetch(f.child, f.count);
+                        stack[sp].write(f);
+                        sp += 1;
+                        cur = n;
+                        continue;
+                    }
+                    // Three or more: push them sorted by decreasing distance, so the
+                    // nearest is on top, and take it.
+                    let base = sp;
+                    let mut bits = mask;
+                    while bits != 0 {
+                        let e = entry(bits.trailing_zeros());
+                        bits &= bits - 1;
+                        self.prefetch(e.child, e.count);
+                        let mut i = sp;
+                        // SAFETY: entries base..sp were written above.
+                        while i > base && unsafe { stack[i - 1].assume_init() }.dist < e.dist {
+                            stack[i] = stack[i - 1];
+                            i -= 1;
+                        }
+                        stack[i].write(e);
+                        sp += 1;
+                    }
+                    sp -= 1;
+                    // SAFETY: written in the loop above.
+                    cur = unsafe { stack[sp].assume_init() };
+                    continue;
+                }
+            }
+            // Pop the next entry that can still hold a closer hit.
+            loop {
+                if sp == 0 {
+                    return any;
+                }
+                sp -= 1;
+                // SAFETY: every entry below `sp` was written before `sp` passed it.
+                cur = unsafe { stack[sp].assume_init() };
+                if cur.dist <= t_max {
+                    break;
+                }
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn occluded_impl<T: NodeTest, const AXIS_PARALLEL: bool, F>(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
+        mut blocks: F,
+    ) -> bool
+    where
+        F: FnMut(u32, u32) -> bool,
+    {
+        let lanes = RayLanes::new(ray);
+        let mut stack = [const { MaybeUninit::<Entry>::uninit() }; STACK_SIZE];
+        let mut sp = 0usize;
+        let mut near = [0.0f32; 8];
+        let mut cur = Entry {
+            child: self.root.0,
+            count: self.root.1,
+            dist: 0.0,
+        };
+        if cur.count == 0 {
+            let (lo, hi) = root_range(self.bounds, ray);
+            if lo > hi {
+                return false;
+            }
+        }
+        loop {
+            stats.nodes_visited += 1;
+            if cur.count > 0 {
+                stats.prims_tested += cur.count;
+                if blocks(cur.child, cur.count) {
+                    return true;
+                }
+            } else {
+                let node = &self.nodes[cur.child as usize];
+                let mut mask =
+                    T::test::<AXIS_PARALLEL>(node, &lanes, ray.t_min, ray.t_max, &mut near);
+                if mask != 0 {
+                    let k = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    while mask != 0 {
+                        let j = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        self.prefetch(node.child[j], node.count[j]);
+                        stack[sp].write(Entry {
+                            child: node.child[j],
+                            count: node.count[j],
+                            dist: 0.0,
+                        });
+                        sp += 1;
+                    }
+                    cur = Entry {
+                        child: node.child[k],
+                        count: node.count[k],
+                        dist: 0.0,
+                    };
+                    continue;
+                }
+            }
+            if sp == 0 {
+                return false;
+            }
+            sp -= 1;
+            // SAFETY: every entry below `sp` was written before `sp` passed it.
+            cur = unsafe { stack[sp].assume_init() };
+        }
+    }
+}
+
+/// The ray's range inside the root box (entry > exit when it misses), with a ray lying
+/// in a face plane counted as inside.
+#[inline(always)]
+fn root_range(b: Bounds3, ray: &Ray) -> (f32, f32) {
+    super::clip_ray(&b, ray, ray.direction.recip()).unwrap_or((1.0, 0.0))
+}
+
+fn detect_avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::testing::check_kind_on_all_scenes;
+    use crate::accel::{Accel, AccelKind};
+
+    /// The shared accelerator property test (closest and any hits equal the brute-force
+    /// list's on random, flat, degenerate and lattice meshes, with axis-parallel rays,
+    /// rays in the meshes' planes and rays starting inside), with whatever node test
+    /// this processor uses.
+    #[test]
+    fn matches_the_list_on_every_test_scene() {
+        check_kind_on_all_scenes(AccelKind::Bvh8);
+    }
+
+    /// The portable and the AVX2 node tests give the same hits, distances and traversal
+    /// counts.
+    #[test]
+    fn portable_and_avx2_agree() {
+        let boxes = crate::accel::bvh::tests::random_boxes(5000, 17);
+        let fast = Bvh8::build(&boxes, &BuildSettings::default());
+        let portable = fast.clone().without_avx2();
+        let mut rng = crate::sampling::Pcg32::new(3, 9);
+        for i in 0..3000 {
+            let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 14.0 - 2.0;
+            let mut d = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5;
+            if i % 4 == 0 {
+                d.y = 0.0;
+            }
+            let ray = Ray::new(o, d);
+            let run = |t: &Bvh8| {
+                let mut stats = RayStats::default();
+                let mut seen = Vec::new();
+                t.intersect(&ray, &mut stats, |p, t_max| {
+                    seen.push(p);
+                    let c = boxes[p as usize].center();
+                    let t = (c - ray.origin).length();
+                    if t < *t_max && (p % 3 == 0) {
+                        *t_max = t;
+                        true
+                    } else {
+                        false
+                    }
+                });
+                let occ = t.occluded(&ray, &mut RayStats::default(), |p| p % 5 == 0);
+                (seen, stats, occ)
+            };
+            assert_eq!(run(&fast), run(&portable), "ray {i}");
+        }
+        // The accelerator enum reaches the same tree.
+        let accel = Accel::Bvh8(fast);
+        assert!(accel.leaf_order().is_some());
+    }
+
+    #[test]
+    fn every_primitive_is_reachable_once() {
+        let boxes = crate::accel::bvh::tests::random_boxes(5000, 3);
+        let wide = Bvh8::build(&boxes, &BuildSettings::default());
+        let mut seen = vec![0u32; boxes.len()];
+        let mut stack = vec![wide.root];
+        while let Some((child, count)) = stack.pop() {
+            if count > 0 {
+                assert_eq!(child % 4, 0, "leaves start at multiples of 4");
+                for &p in &wide.prim_order[child as usize..(child + count) as usize] {
+                    seen[p as usize] += 1;
+                }
+                continue;
+            }
+            let node = &wide.nodes[child as usize];
+            for k in 0..8 {
+                if node.count[k] != EMPTY {
+                    stack.push((node.child[k], node.count[k]));
+                }
+            }
+        }
+        assert!(seen.iter().all(|&c| c == 1));
+        assert_eq!(wide.prim_order.len() % 4, 0);
+    }
+}
