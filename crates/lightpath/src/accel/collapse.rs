@@ -2,9 +2,11 @@
 //! BVHs), with leaves laid out for SIMD primitive blocks.
 //!
 //! Each wide node takes the up-to-`W` descendants found by repeatedly opening its
-//! largest inner child. A subtree of at most [`LEAF_ALIGN`] primitives becomes one leaf:
-//! its primitives are tested together as one SIMD block, which costs less than visiting
-//! its nodes. Leaves are then moved to positions that are multiples of [`LEAF_ALIGN`]
+//! largest inner child. A subtree of at most two blocks of [`LEAF_ALIGN`] primitives
+//! becomes one leaf, whose primitives are tested together as SIMD blocks: that costs
+//! less than visiting its nodes, and saves the memory of nodes with two small leaves.
+//! Where a node still has free slots once no inner child is left, such leaves of more
+//! than one block are opened into their halves. Leaves are then moved to positions that are multiples of [`LEAF_ALIGN`]
 //! and padded to a multiple of it by repeating their last primitive, so that a
 //! primitive owner can keep its data in blocks that match the leaves
 //! ([`crate::geometry::TriangleBlock`]); leaves keep their true counts.
@@ -13,6 +15,10 @@ use super::bvh::Bvh;
 
 /// Leaves start at multiples of this and are padded to it.
 pub const LEAF_ALIGN: usize = 4;
+
+/// A subtree of at most this many primitives (two blocks) becomes a leaf, unless its
+/// node has room to open it.
+const MERGE_LIMIT: usize = 2 * LEAF_ALIGN;
 
 /// Marks an unused slot.
 pub const EMPTY: u32 = u32::MAX;
@@ -57,7 +63,7 @@ pub fn collapse<const W: usize>(bvh: &Bvh) -> Collapsed<W> {
         if n.is_leaf() {
             return Some((n.left_or_first, n.count));
         }
-        ranges[s as usize].filter(|r| r.1 as usize <= LEAF_ALIGN)
+        ranges[s as usize].filter(|r| r.1 as usize <= MERGE_LIMIT)
     };
     out.root = match as_leaf(0) {
         Some(leaf) => leaf,
@@ -82,17 +88,23 @@ fn fill<const W: usize>(
     let n = &bvh.nodes[node as usize];
     let mut slots = vec![n.left_or_first, n.left_or_first + 1];
     while slots.len() < W {
-        // Open the inner child with the largest surface area.
-        let best = slots
-            .iter()
-            .enumerate()
-            .filter(|(_, &s)| as_leaf(s).is_none())
-            .max_by(|a, b| {
-                let sa = bvh.nodes[*a.1 as usize].bounds().surface_area();
-                let sb = bvh.nodes[*b.1 as usize].bounds().surface_area();
-                sa.total_cmp(&sb)
+        // Open the inner child with the largest surface area; when every child is a
+        // leaf, split a leaf of more than one block that still has a binary subtree.
+        let area = |s: u32| bvh.nodes[s as usize].bounds().surface_area();
+        let largest = |open: &dyn Fn(u32) -> bool| {
+            slots
+                .iter()
+                .enumerate()
+                .filter(|(_, &s)| open(s))
+                .max_by(|a, b| area(*a.1).total_cmp(&area(*b.1)))
+                .map(|(i, _)| i)
+        };
+        let best = largest(&|s| as_leaf(s).is_none()).or_else(|| {
+            largest(&|s| {
+                !bvh.nodes[s as usize].is_leaf()
+                    && as_leaf(s).is_some_and(|(_, count)| count as usize > LEAF_ALIGN)
             })
-            .map(|(i, _)| i);
+        });
         let Some(i) = best else { break };
         let s = slots.swap_remove(i);
         let c = bvh.nodes[s as usize].left_or_first;
