@@ -312,11 +312,17 @@ impl Bvh8 {
         .unwrap_or_else(|| vec![self.bounds])
     }
 
-    /// Starts loading an inner child's node.
+    /// Starts loading a pushed child: an inner node's cache lines, or through
+    /// `prefetch_leaf` a leaf's primitive data, so that the misses of all the hit
+    /// children overlap instead of coming one at a time when each is popped.
     #[inline(always)]
-    fn prefetch(&self, child: u32, count: u32) {
+    fn prefetch(&self, child: u32, count: u32, prefetch_leaf: &impl Fn(u32)) {
+        if count > 0 {
+            prefetch_leaf(child);
+            return;
+        }
         #[cfg(target_arch = "x86_64")]
-        if count == 0 {
+        {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
             let p = self.nodes.as_ptr().wrapping_add(child as usize) as *const i8;
             // SAFETY: prefetching is a hint and never faults, whatever the address.
@@ -327,7 +333,7 @@ impl Bvh8 {
             }
         }
         #[cfg(not(target_arch = "x86_64"))]
-        let _ = (child, count);
+        let _ = child;
     }
 
     /// Closest hit, front to back (see [`crate::accel::Accel::intersect`]).
@@ -339,13 +345,18 @@ impl Bvh8 {
         mut hit: F,
     ) -> bool {
         let prims = &self.prim_order;
-        self.intersect_leaves(ray, stats, |first, count, t_max| {
-            let mut any = false;
-            for &prim in &prims[first as usize..(first + count) as usize] {
-                any |= hit(prim, t_max);
-            }
-            any
-        })
+        self.intersect_leaves(
+            ray,
+            stats,
+            |_| {},
+            |first, count, t_max| {
+                let mut any = false;
+                for &prim in &prims[first as usize..(first + count) as usize] {
+                    any |= hit(prim, t_max);
+                }
+                any
+            },
+        )
     }
 
     /// Any hit: returns at the first primitive that blocks the ray.
@@ -357,11 +368,16 @@ impl Bvh8 {
         mut blocks: F,
     ) -> bool {
         let prims = &self.prim_order;
-        self.occluded_leaves(ray, stats, |first, count| {
-            prims[first as usize..(first + count) as usize]
-                .iter()
-                .any(|&prim| blocks(prim))
-        })
+        self.occluded_leaves(
+            ray,
+            stats,
+            |_| {},
+            |first, count| {
+                prims[first as usize..(first + count) as usize]
+                    .iter()
+                    .any(|&prim| blocks(prim))
+            },
+        )
     }
 
     /// Closest hit by whole leaves: `leaf(first, count, &mut t_max)` tests the
@@ -370,10 +386,11 @@ impl Bvh8 {
     /// last primitive), lowers `t_max` for a closer hit and returns whether it found
     /// one.
     #[inline]
-    pub fn intersect_leaves<F: FnMut(u32, u32, &mut f32) -> bool>(
+    pub fn intersect_leaves<P: Fn(u32), F: FnMut(u32, u32, &mut f32) -> bool>(
         &self,
         ray: &Ray,
         stats: &mut RayStats,
+        prefetch_leaf: P,
         leaf: F,
     ) -> bool {
         if self.prim_order.is_empty() {
@@ -382,37 +399,39 @@ impl Bvh8 {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: AVX2 was detected when the tree was built.
-            return unsafe { self.intersect_avx2(ray, stats, leaf) };
+            return unsafe { self.intersect_avx2(ray, stats, prefetch_leaf, leaf) };
         }
         if has_zero_component(ray.direction) {
-            self.intersect_impl::<Portable, true, F>(ray, stats, leaf)
+            self.intersect_impl::<Portable, true, P, F>(ray, stats, prefetch_leaf, leaf)
         } else {
-            self.intersect_impl::<Portable, false, F>(ray, stats, leaf)
+            self.intersect_impl::<Portable, false, P, F>(ray, stats, prefetch_leaf, leaf)
         }
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn intersect_avx2<F: FnMut(u32, u32, &mut f32) -> bool>(
+    unsafe fn intersect_avx2<P: Fn(u32), F: FnMut(u32, u32, &mut f32) -> bool>(
         &self,
         ray: &Ray,
         stats: &mut RayStats,
+        prefetch_leaf: P,
         leaf: F,
     ) -> bool {
         if has_zero_component(ray.direction) {
-            self.intersect_impl::<Avx2, true, F>(ray, stats, leaf)
+            self.intersect_impl::<Avx2, true, P, F>(ray, stats, prefetch_leaf, leaf)
         } else {
-            self.intersect_impl::<Avx2, false, F>(ray, stats, leaf)
+            self.intersect_impl::<Avx2, false, P, F>(ray, stats, prefetch_leaf, leaf)
         }
     }
 
     /// Any hit by whole leaves: `blocks(first, count)` says whether a primitive at the
     /// positions `first..first + count` of [`Bvh8::prim_order`] blocks the ray.
     #[inline]
-    pub fn occluded_leaves<F: FnMut(u32, u32) -> bool>(
+    pub fn occluded_leaves<P: Fn(u32), F: FnMut(u32, u32) -> bool>(
         &self,
         ray: &Ray,
         stats: &mut RayStats,
+        prefetch_leaf: P,
         blocks: F,
     ) -> bool {
         if self.prim_order.is_empty() {
@@ -421,38 +440,41 @@ impl Bvh8 {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: AVX2 was detected when the tree was built.
-            return unsafe { self.occluded_avx2(ray, stats, blocks) };
+            return unsafe { self.occluded_avx2(ray, stats, prefetch_leaf, blocks) };
         }
         if has_zero_component(ray.direction) {
-            self.occluded_impl::<Portable, true, F>(ray, stats, blocks)
+            self.occluded_impl::<Portable, true, P, F>(ray, stats, prefetch_leaf, blocks)
         } else {
-            self.occluded_impl::<Portable, false, F>(ray, stats, blocks)
+            self.occluded_impl::<Portable, false, P, F>(ray, stats, prefetch_leaf, blocks)
         }
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn occluded_avx2<F: FnMut(u32, u32) -> bool>(
+    unsafe fn occluded_avx2<P: Fn(u32), F: FnMut(u32, u32) -> bool>(
         &self,
         ray: &Ray,
         stats: &mut RayStats,
+        prefetch_leaf: P,
         blocks: F,
     ) -> bool {
         if has_zero_component(ray.direction) {
-            self.occluded_impl::<Avx2, true, F>(ray, stats, blocks)
+            self.occluded_impl::<Avx2, true, P, F>(ray, stats, prefetch_leaf, blocks)
         } else {
-            self.occluded_impl::<Avx2, false, F>(ray, stats, blocks)
+            self.occluded_impl::<Avx2, false, P, F>(ray, stats, prefetch_leaf, blocks)
         }
     }
 
     #[inline(always)]
-    fn intersect_impl<T: NodeTest, const AXIS_PARALLEL: bool, F>(
+    fn intersect_impl<T: NodeTest, const AXIS_PARALLEL: bool, P, F>(
         &self,
         ray: &Ray,
         stats: &mut RayStats,
+        prefetch_leaf: P,
         mut leaf: F,
     ) -> bool
     where
+        P: Fn(u32),
         F: FnMut(u32, u32, &mut f32) -> bool,
     {
         let lanes = RayLanes::new(ray);
@@ -498,7 +520,7 @@ impl Bvh8 {
                     let rest = rest & (rest - 1);
                     if rest == 0 {
                         let (n, f) = if a.dist <= b.dist { (a, b) } else { (b, a) };
-                        self.prefetch(f.child, f.count);
+                        self.prefetch(f.child, f.count, &prefetch_leaf);
                         stack[sp].write(f);
                         sp += 1;
                         cur = n;
@@ -511,7 +533,7 @@ impl Bvh8 {
                     while bits != 0 {
                         let e = entry(bits.trailing_zeros());
                         bits &= bits - 1;
-                        self.prefetch(e.child, e.count);
+                        self.prefetch(e.child, e.count, &prefetch_leaf);
                         let mut i = sp;
                         // SAFETY: entries base..sp were written above.
                         while i > base && unsafe { stack[i - 1].assume_init() }.dist < e.dist {
@@ -543,13 +565,15 @@ impl Bvh8 {
     }
 
     #[inline(always)]
-    fn occluded_impl<T: NodeTest, const AXIS_PARALLEL: bool, F>(
+    fn occluded_impl<T: NodeTest, const AXIS_PARALLEL: bool, P, F>(
         &self,
         ray: &Ray,
         stats: &mut RayStats,
+        prefetch_leaf: P,
         mut blocks: F,
     ) -> bool
     where
+        P: Fn(u32),
         F: FnMut(u32, u32) -> bool,
     {
         let lanes = RayLanes::new(ray);
@@ -584,7 +608,7 @@ impl Bvh8 {
                     while mask != 0 {
                         let j = mask.trailing_zeros() as usize;
                         mask &= mask - 1;
-                        self.prefetch(node.child[j], node.count[j]);
+                        self.prefetch(node.child[j], node.count[j], &prefetch_leaf);
                         stack[sp].write(Entry {
                             child: node.child[j],
                             count: node.count[j],

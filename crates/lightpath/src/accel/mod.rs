@@ -197,30 +197,34 @@ impl Accel {
     /// Closest hit by whole leaves (`leaf(first, count, &mut t_max)` over positions of
     /// [`Accel::leaf_order`]); only for accelerators that have a leaf order.
     #[inline]
-    pub fn intersect_leaves<F: FnMut(u32, u32, &mut f32) -> bool>(
+    /// `prefetch_leaf(first)` may be called for leaves that will be visited later, so
+    /// that their primitive data can start loading.
+    pub fn intersect_leaves<P: Fn(u32), F: FnMut(u32, u32, &mut f32) -> bool>(
         &self,
         ray: &Ray,
         stats: &mut RayStats,
+        prefetch_leaf: P,
         leaf: F,
     ) -> bool {
         match self {
             Accel::Bvh4(a) => a.intersect_leaves(ray, stats, leaf),
-            Accel::Bvh8(a) => a.intersect_leaves(ray, stats, leaf),
+            Accel::Bvh8(a) => a.intersect_leaves(ray, stats, prefetch_leaf, leaf),
             _ => unreachable!("intersect_leaves on an accelerator without a leaf order"),
         }
     }
 
     /// Any hit by whole leaves; only for accelerators that have a leaf order.
     #[inline]
-    pub fn occluded_leaves<F: FnMut(u32, u32) -> bool>(
+    pub fn occluded_leaves<P: Fn(u32), F: FnMut(u32, u32) -> bool>(
         &self,
         ray: &Ray,
         stats: &mut RayStats,
+        prefetch_leaf: P,
         blocks: F,
     ) -> bool {
         match self {
             Accel::Bvh4(a) => a.occluded_leaves(ray, stats, blocks),
-            Accel::Bvh8(a) => a.occluded_leaves(ray, stats, blocks),
+            Accel::Bvh8(a) => a.occluded_leaves(ray, stats, prefetch_leaf, blocks),
             _ => unreachable!("occluded_leaves on an accelerator without a leaf order"),
         }
     }
