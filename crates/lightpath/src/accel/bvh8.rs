@@ -243,9 +243,10 @@ impl Bvh8 {
     /// Collapses a binary BVH into 8-wide nodes ([`super::collapse`]).
     pub fn collapse(bvh: &Bvh) -> Bvh8 {
         let tree = collapse::<8>(bvh);
+        use rayon::prelude::*;
         let nodes = tree
             .nodes
-            .iter()
+            .par_iter()
             .map(|slots| {
                 let mut n = EMPTY_NODE;
                 for (k, s) in slots.iter().enumerate() {

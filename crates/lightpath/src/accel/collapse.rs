@@ -12,6 +12,7 @@
 //! ([`crate::geometry::TriangleBlock`]); leaves keep their true counts.
 
 use super::bvh::Bvh;
+use rayon::prelude::*;
 
 /// Leaves start at multiples of this and are padded to it.
 pub const LEAF_ALIGN: usize = 4;
@@ -47,7 +48,11 @@ pub struct Collapsed<const W: usize> {
     pub prim_order: Vec<u32>,
 }
 
-/// Collapses `bvh` into `W`-wide nodes (see the module docs).
+/// Levels of wide nodes whose subtrees are collapsed in parallel.
+const PARALLEL_LEVELS: usize = 2;
+
+/// Collapses `bvh` into `W`-wide nodes (see the module docs). The result does not
+/// depend on the number of threads.
 pub fn collapse<const W: usize>(bvh: &Bvh) -> Collapsed<W> {
     let mut out = Collapsed {
         nodes: Vec::new(),
@@ -57,19 +62,10 @@ pub fn collapse<const W: usize>(bvh: &Bvh) -> Collapsed<W> {
     if bvh.nodes.is_empty() || bvh.prim_indices.is_empty() {
         return out;
     }
-    let ranges = subtree_ranges(bvh);
-    let as_leaf = |s: u32| -> Option<(u32, u32)> {
-        let n = &bvh.nodes[s as usize];
-        if n.is_leaf() {
-            return Some((n.left_or_first, n.count));
-        }
-        ranges[s as usize].filter(|r| r.1 as usize <= MERGE_LIMIT)
-    };
-    out.root = match as_leaf(0) {
+    out.root = match as_leaf(bvh, 0) {
         Some(leaf) => leaf,
         None => {
-            out.nodes.push([UNUSED; W]);
-            fill(bvh, &as_leaf, &mut out.nodes, 0, 0);
+            out.nodes = collapse_parallel(bvh, 0, 0);
             (0, 0)
         }
     };
@@ -77,53 +73,94 @@ pub fn collapse<const W: usize>(bvh: &Bvh) -> Collapsed<W> {
     out
 }
 
-/// Fills wide node `at` from the binary inner node `node`.
-fn fill<const W: usize>(
-    bvh: &Bvh,
-    as_leaf: &impl Fn(u32) -> Option<(u32, u32)>,
-    nodes: &mut Vec<[Slot; W]>,
+/// A binary node as a candidate slot: its index, its leaf range if it is taken as a
+/// leaf, and its surface area.
+#[derive(Clone, Copy)]
+struct Candidate {
     node: u32,
-    at: usize,
-) {
-    let n = &bvh.nodes[node as usize];
-    let mut slots = vec![n.left_or_first, n.left_or_first + 1];
-    while slots.len() < W {
+    leaf: Option<(u32, u32)>,
+    area: f32,
+}
+
+/// The leaf range of binary node `s` if it becomes a leaf: a binary leaf, or a subtree
+/// of at most [`MERGE_LIMIT`] primitives that are contiguous. Looks at no more than
+/// about `2 * MERGE_LIMIT` nodes.
+fn as_leaf(bvh: &Bvh, s: u32) -> Option<(u32, u32)> {
+    let n = &bvh.nodes[s as usize];
+    if n.is_leaf() {
+        return Some((n.left_or_first, n.count));
+    }
+    let mut stack = [0u32; 2 * MERGE_LIMIT + 2];
+    let (mut sp, mut total, mut lo, mut hi) = (1usize, 0u32, u32::MAX, 0u32);
+    stack[0] = s;
+    while sp > 0 {
+        sp -= 1;
+        let n = &bvh.nodes[stack[sp] as usize];
+        if n.is_leaf() {
+            total += n.count;
+            if total as usize > MERGE_LIMIT {
+                return None;
+            }
+            lo = lo.min(n.left_or_first);
+            hi = hi.max(n.left_or_first + n.count);
+        } else {
+            if sp + 2 > stack.len() {
+                return None;
+            }
+            stack[sp] = n.left_or_first;
+            stack[sp + 1] = n.left_or_first + 1;
+            sp += 2;
+        }
+    }
+    (hi - lo == total).then_some((lo, total))
+}
+
+fn candidate(bvh: &Bvh, s: u32) -> Candidate {
+    Candidate {
+        node: s,
+        leaf: as_leaf(bvh, s),
+        area: bvh.nodes[s as usize].bounds().surface_area(),
+    }
+}
+
+/// The up-to-`W` descendants of binary inner node `node` that become the slots of its
+/// wide node.
+fn choose<const W: usize>(bvh: &Bvh, node: u32) -> ([Candidate; W], usize) {
+    let first = bvh.nodes[node as usize].left_or_first;
+    let mut slots = [candidate(bvh, first); W];
+    slots[1] = candidate(bvh, first + 1);
+    let mut len = 2;
+    while len < W {
         // Open the inner child with the largest surface area; when every child is a
         // leaf, split a leaf of more than one block that still has a binary subtree.
-        let area = |s: u32| bvh.nodes[s as usize].bounds().surface_area();
-        let largest = |open: &dyn Fn(u32) -> bool| {
-            slots
-                .iter()
-                .enumerate()
-                .filter(|(_, &s)| open(s))
-                .max_by(|a, b| area(*a.1).total_cmp(&area(*b.1)))
-                .map(|(i, _)| i)
+        let pick = |open: &dyn Fn(&Candidate) -> bool| {
+            (0..len)
+                .filter(|&i| open(&slots[i]))
+                .max_by(|&a, &b| slots[a].area.total_cmp(&slots[b].area))
         };
-        let best = largest(&|s| as_leaf(s).is_none()).or_else(|| {
-            largest(&|s| {
-                !bvh.nodes[s as usize].is_leaf()
-                    && as_leaf(s).is_some_and(|(_, count)| count as usize > LEAF_ALIGN)
+        let best = pick(&|c| c.leaf.is_none()).or_else(|| {
+            pick(&|c| {
+                !bvh.nodes[c.node as usize].is_leaf()
+                    && c.leaf.is_some_and(|(_, count)| count as usize > LEAF_ALIGN)
             })
         });
         let Some(i) = best else { break };
-        let s = slots.swap_remove(i);
-        let c = bvh.nodes[s as usize].left_or_first;
-        slots.push(c);
-        slots.push(c + 1);
+        let c = bvh.nodes[slots[i].node as usize].left_or_first;
+        slots[i] = candidate(bvh, c);
+        slots[len] = candidate(bvh, c + 1);
+        len += 1;
     }
+    (slots, len)
+}
+
+/// The wide node for binary inner node `node`, with its inner children still to be
+/// placed: their slots get `child` = the binary node and `count` 0.
+fn wide_node<const W: usize>(bvh: &Bvh, node: u32) -> ([Slot; W], usize) {
+    let (slots, len) = choose::<W>(bvh, node);
     let mut wide = [UNUSED; W];
-    let mut inner = Vec::new();
-    for (k, &s) in slots.iter().enumerate() {
-        let b = &bvh.nodes[s as usize];
-        let (child, count) = match as_leaf(s) {
-            Some(leaf) => leaf,
-            None => {
-                let index = nodes.len();
-                nodes.push([UNUSED; W]);
-                inner.push((s, index));
-                (index as u32, 0)
-            }
-        };
+    for (k, c) in slots[..len].iter().enumerate() {
+        let b = &bvh.nodes[c.node as usize];
+        let (child, count) = c.leaf.unwrap_or((c.node, 0));
         wide[k] = Slot {
             min: b.min,
             max: b.max,
@@ -131,33 +168,58 @@ fn fill<const W: usize>(
             count,
         };
     }
-    nodes[at] = wide;
-    for (s, index) in inner {
-        fill(bvh, as_leaf, nodes, s, index);
-    }
+    (wide, len)
 }
 
-/// The contiguous range `(first, count)` of `prim_indices` under every binary node, or
-/// `None` where a subtree's primitives are not contiguous.
-fn subtree_ranges(bvh: &Bvh) -> Vec<Option<(u32, u32)>> {
-    fn visit(bvh: &Bvh, i: usize, ranges: &mut [Option<(u32, u32)>]) -> Option<(u32, u32)> {
-        let n = &bvh.nodes[i];
-        let r = if n.is_leaf() {
-            Some((n.left_or_first, n.count))
-        } else {
-            let l = n.left_or_first as usize;
-            match (visit(bvh, l, ranges), visit(bvh, l + 1, ranges)) {
-                (Some(a), Some(b)) if a.0 + a.1 == b.0 => Some((a.0, a.1 + b.1)),
-                (Some(a), Some(b)) if b.0 + b.1 == a.0 => Some((b.0, a.1 + b.1)),
-                _ => None,
-            }
-        };
-        ranges[i] = r;
-        r
+/// The wide subtree under binary inner node `node`, its root first; the top levels
+/// are collapsed in parallel and concatenated in slot order.
+fn collapse_parallel<const W: usize>(bvh: &Bvh, node: u32, level: usize) -> Vec<[Slot; W]> {
+    if level >= PARALLEL_LEVELS {
+        let mut nodes = vec![[UNUSED; W]];
+        fill(bvh, &mut nodes, node, 0);
+        return nodes;
     }
-    let mut ranges = vec![None; bvh.nodes.len()];
-    visit(bvh, 0, &mut ranges);
-    ranges
+    let (mut wide, len) = wide_node::<W>(bvh, node);
+    let inner: Vec<usize> = (0..len).filter(|&k| wide[k].count == 0).collect();
+    let subtrees: Vec<Vec<[Slot; W]>> = inner
+        .par_iter()
+        .map(|&k| collapse_parallel::<W>(bvh, wide[k].child, level + 1))
+        .collect();
+    let mut nodes = vec![[UNUSED; W]];
+    for (&k, mut sub) in inner.iter().zip(subtrees) {
+        let offset = nodes.len() as u32;
+        wide[k].child = offset;
+        for n in &mut sub {
+            for slot in n.iter_mut() {
+                if slot.count == 0 {
+                    slot.child += offset;
+                }
+            }
+        }
+        nodes.append(&mut sub);
+    }
+    nodes[0] = wide;
+    nodes
+}
+
+/// Fills wide node `at` from the binary inner node `node`, appending its descendants.
+fn fill<const W: usize>(bvh: &Bvh, nodes: &mut Vec<[Slot; W]>, node: u32, at: usize) {
+    let (mut wide, len) = wide_node::<W>(bvh, node);
+    let mut inner = [(0u32, 0usize); W];
+    let mut n_inner = 0;
+    for slot in wide[..len].iter_mut() {
+        if slot.count == 0 {
+            let index = nodes.len();
+            nodes.push([UNUSED; W]);
+            inner[n_inner] = (slot.child, index);
+            n_inner += 1;
+            slot.child = index as u32;
+        }
+    }
+    nodes[at] = wide;
+    for &(s, index) in &inner[..n_inner] {
+        fill(bvh, nodes, s, index);
+    }
 }
 
 /// Moves every leaf to an aligned, padded position (see the module docs).

@@ -86,9 +86,10 @@ impl Bvh4 {
     /// Collapses a binary BVH into 4-wide nodes ([`super::collapse`]).
     pub fn collapse(bvh: &Bvh) -> Bvh4 {
         let tree = collapse::<4>(bvh);
+        use rayon::prelude::*;
         let nodes = tree
             .nodes
-            .iter()
+            .par_iter()
             .map(|slots| {
                 let mut n = EMPTY_NODE;
                 for (k, s) in slots.iter().enumerate() {

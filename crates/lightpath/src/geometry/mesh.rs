@@ -191,9 +191,10 @@ impl TriangleMesh {
                 ));
             }
         }
+        use rayon::prelude::*;
         let boxes: Vec<Bounds3> = data
             .indices
-            .iter()
+            .par_iter()
             .map(|t| {
                 let mut b = Bounds3::from_point(data.positions[t[0] as usize]);
                 b.expand(data.positions[t[1] as usize]);
