@@ -22,7 +22,9 @@
 //! pushed sorted, nearest on top. Entry distances stay on the stack and entries farther
 //! than the current hit are culled when popped. Pushed inner nodes are prefetched.
 //! Rays with a zero direction component take a variant of the node test in which a ray
-//! lying in a slab's plane (0·∞ = NaN) is inside that slab.
+//! lying in a slab's plane (0·∞ = NaN) is inside that slab. There is no separate test
+//! of the root's own box: a ray that misses it misses all the root's children, which
+//! costs one node test.
 
 use super::bvh::{has_zero_component, BuildSettings, Bvh};
 use super::collapse::{collapse, wide_cover, EMPTY};
@@ -489,17 +491,13 @@ impl Bvh8 {
             count: self.root.1,
             dist: ray.t_min,
         };
-        if cur.count == 0 {
-            // The root box itself: a node's test covers only its children.
-            let (lo, hi) = root_range(self.bounds, ray);
-            if lo > hi {
-                return false;
-            }
-        }
+        // Counted here and added to `stats` at the end: stores through `stats` in the
+        // loop cannot be kept in registers across the calls to `leaf`.
+        let (mut visited, mut tested) = (0u32, 0u32);
         loop {
-            stats.nodes_visited += 1;
+            visited += 1;
             if cur.count > 0 {
-                stats.prims_tested += cur.count;
+                tested += cur.count;
                 any |= leaf(cur.child, cur.count, &mut t_max);
             } else {
                 let node = &self.nodes[cur.child as usize];
@@ -553,6 +551,8 @@ impl Bvh8 {
             // Pop the next entry that can still hold a closer hit.
             loop {
                 if sp == 0 {
+                    stats.nodes_visited += visited;
+                    stats.prims_tested += tested;
                     return any;
                 }
                 sp -= 1;
@@ -586,17 +586,14 @@ impl Bvh8 {
             count: self.root.1,
             dist: 0.0,
         };
-        if cur.count == 0 {
-            let (lo, hi) = root_range(self.bounds, ray);
-            if lo > hi {
-                return false;
-            }
-        }
+        let (mut visited, mut tested) = (0u32, 0u32);
         loop {
-            stats.nodes_visited += 1;
+            visited += 1;
             if cur.count > 0 {
-                stats.prims_tested += cur.count;
+                tested += cur.count;
                 if blocks(cur.child, cur.count) {
+                    stats.nodes_visited += visited;
+                    stats.prims_tested += tested;
                     return true;
                 }
             } else {
@@ -626,6 +623,8 @@ impl Bvh8 {
                 }
             }
             if sp == 0 {
+                stats.nodes_visited += visited;
+                stats.prims_tested += tested;
                 return false;
             }
             sp -= 1;
@@ -633,13 +632,6 @@ impl Bvh8 {
             cur = unsafe { stack[sp].assume_init() };
         }
     }
-}
-
-/// The ray's range inside the root box (entry > exit when it misses), with a ray lying
-/// in a face plane counted as inside.
-#[inline(always)]
-fn root_range(b: Bounds3, ray: &Ray) -> (f32, f32) {
-    super::clip_ray(&b, ray, ray.direction.recip()).unwrap_or((1.0, 0.0))
 }
 
 fn detect_avx2() -> bool {
