@@ -148,6 +148,18 @@ pub fn intersect_triangle_watertight(
     Some((t, e0 * inv_det, e1 * inv_det, e2 * inv_det))
 }
 
+/// Starts loading the cache line at `p` (a hint: never faults, whatever the address).
+#[inline(always)]
+fn prefetch_line<T>(p: *const T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: prefetching never faults, whatever the address.
+    unsafe {
+        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p as *const i8);
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = p;
+}
+
 /// Packs the triangles at the accelerator's leaf positions into blocks of four.
 fn pack_blocks(positions: &[Vec3], indices: &[[u32; 3]], order: &[u32]) -> Vec<TriangleBlock> {
     use rayon::prelude::*;
@@ -293,19 +305,10 @@ impl TriangleMesh {
     /// Starts loading the first block of the leaf at position `first`.
     #[inline(always)]
     fn prefetch_block(&self, first: u32) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            let p = self.blocks.as_ptr().wrapping_add(first as usize / BLOCK) as *const i8;
-            // SAFETY: prefetching is a hint and never faults, whatever the address.
-            unsafe {
-                for line in 0..3 {
-                    _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64 * line));
-                }
-            }
+        let p = self.blocks.as_ptr().wrapping_add(first as usize / BLOCK) as *const u8;
+        for line in 0..3 {
+            prefetch_line(p.wrapping_add(64 * line));
         }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = first;
     }
 
     /// Closest hit through the mesh's BVH.
@@ -314,6 +317,9 @@ impl TriangleMesh {
         let wr = WatertightRay::new(ray);
         let mut best = None;
         if let Some(order) = self.accel.leaf_order().filter(|_| !self.blocks.is_empty()) {
+            // The closest hit as (t, leaf position, barycentrics); the triangle's index is
+            // looked up once at the end, its cache line prefetched when the hit is found.
+            let mut closest: Option<(f32, usize, Vec2)> = None;
             let prefetch = |first| self.prefetch_block(first);
             self.accel
                 .intersect_leaves(ray, stats, prefetch, |first, count, t_max| {
@@ -324,17 +330,19 @@ impl TriangleMesh {
                         if bits != 0 {
                             let lane = nearest_lane(bits, t);
                             *t_max = t[lane];
-                            best = Some(ShapeHit {
-                                t: t[lane],
-                                prim: order[b * BLOCK + lane],
-                                uv: Vec2::new(b1[lane], b2[lane]),
-                            });
+                            let at = b * BLOCK + lane;
+                            prefetch_line(order.as_ptr().wrapping_add(at));
+                            closest = Some((t[lane], at, Vec2::new(b1[lane], b2[lane])));
                             found = true;
                         }
                     }
                     found
                 });
-            return best;
+            return closest.map(|(t, at, uv)| ShapeHit {
+                t,
+                prim: order[at],
+                uv,
+            });
         }
         self.accel.intersect(ray, stats, |prim, t_max| {
             let (p0, p1, p2) = self.vertices(prim);
