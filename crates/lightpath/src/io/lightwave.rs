@@ -70,6 +70,7 @@ pub fn build(root: &Rc<Node>, path: &Path, options: &LoadOptions) -> Result<Load
         textures: HashMap::new(),
         materials: HashMap::new(),
         images: HashMap::new(),
+        default_accel: AccelKind::default(),
     };
     b.root(root)
 }
@@ -77,6 +78,8 @@ pub fn build(root: &Rc<Node>, path: &Path, options: &LoadOptions) -> Result<Load
 struct Builder {
     path: PathBuf,
     options: LoadOptions,
+    /// The accelerator when `options` names none (see [`default_accel`]).
+    default_accel: AccelKind,
     /// Shapes built so far, by node identity (a `<ref>`'d shape is built once).
     shapes: HashMap<*const Node, Arc<Shape>>,
     /// Groups by node, as instances relative to the group (built once, placed many times).
@@ -179,6 +182,7 @@ impl Builder {
                 if scale <= 0.0 {
                     return Err(node.error("aov `scale` must be positive"));
                 }
+                self.default_accel = default_accel(Some(variable));
                 Integrator::Aov(Aov { variable, scale })
             }
             Some("camera") => Integrator::CameraDirection(CameraDirection),
@@ -294,7 +298,7 @@ impl Builder {
         let mut scene = Scene::new(
             instances,
             Some(camera),
-            self.options.accel.unwrap_or(default_accel()),
+            self.options.accel.unwrap_or(self.default_accel),
         );
         scene
             .set_lights(lights, &weights)
@@ -1070,8 +1074,12 @@ impl Builder {
         }
         let data = crate::io::load_mesh(&path)
             .map_err(|e| node.error(format!("cannot load mesh: {e}")))?;
-        let mesh = TriangleMesh::new(data, smooth, self.options.accel.unwrap_or(default_accel()))
-            .map_err(|m| node.error(format!("{}: {m}", path.display())))?;
+        let mesh = TriangleMesh::new(
+            data,
+            smooth,
+            self.options.accel.unwrap_or(self.default_accel),
+        )
+        .map_err(|m| node.error(format!("{}: {m}", path.display())))?;
         let s = Arc::new(Shape::TriangleMesh(Arc::new(mesh)));
         self.meshes.insert((canonical, smooth), s.clone());
         Ok(s)
@@ -1201,10 +1209,14 @@ fn point_intensity(node: &Node) -> Result<Vec3> {
     }
 }
 
-/// The accelerator lightwave scenes get when none is asked for: the course's BVH, whose
-/// traversal statistics the course's `bvh` views record.
-pub fn default_accel() -> AccelKind {
-    AccelKind::BvhCourse
+/// The accelerator a lightwave scene gets when none is asked for: for the course's
+/// `bvh` statistics view the course's own BVH, whose traversal counts that view records
+/// and the course's references show; otherwise the fastest.
+pub fn default_accel(aov: Option<AovVariable>) -> AccelKind {
+    match aov {
+        Some(AovVariable::Bvh) => AccelKind::BvhCourse,
+        _ => AccelKind::default(),
+    }
 }
 
 #[cfg(test)]
