@@ -285,19 +285,21 @@ impl Scene {
                 best = Some((i, h));
             }
         }
-        let ray_in = Ray { t_max, ..*ray };
-        self.tlas
-            .intersect(&ray_in, &mut RayStats::default(), |k, t_max| {
-                let i = self.bounded[k as usize];
-                match self.instances[i as usize].intersect(ray, *t_max, stats) {
-                    Some(h) => {
-                        *t_max = h.t;
-                        best = Some((i, h));
-                        true
+        if !self.bounded.is_empty() {
+            let ray_in = Ray { t_max, ..*ray };
+            self.tlas
+                .intersect(&ray_in, &mut RayStats::default(), |k, t_max| {
+                    let i = self.bounded[k as usize];
+                    match self.instances[i as usize].intersect(ray, *t_max, stats) {
+                        Some(h) => {
+                            *t_max = h.t;
+                            best = Some((i, h));
+                            true
+                        }
+                        None => false,
                     }
-                    None => false,
-                }
-            });
+                });
+        }
         // The counters record bottom-level work only (as the course's `bvh` view does):
         // top-level nodes and instance tests are not counted.
         let Some((i, hit)) = best else {
@@ -328,6 +330,9 @@ impl Scene {
             .any(|&i| self.instances[i as usize].occluded(ray, stats))
         {
             return true;
+        }
+        if self.bounded.is_empty() {
+            return false;
         }
         let mut local = RayStats::default();
         self.tlas.occluded(ray, &mut local, |k| {
