@@ -64,14 +64,16 @@ impl PathTracer {
         let mut prev: Option<Previous> = None;
         let mut depth = 1u32;
         loop {
-            let dir = ray.direction.normalize();
             let Some(si) = scene.intersect_with_stats(&ray, stats) else {
+                let dir = ray.direction.normalize();
                 let le = scene.background(dir);
                 if le != Vec3::ZERO {
                     l += beta * le * self.environment_mis(scene, prev.as_ref(), dir);
                 }
                 break;
             };
+            // The unit ray direction (the scene sets `wo` to exactly its negation).
+            let dir = -si.wo;
             let inst = &scene.instances[si.instance as usize];
             if inst.emission.is_some() {
                 let le = scene.emitted(&si, si.wo);

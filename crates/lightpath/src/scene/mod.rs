@@ -263,7 +263,8 @@ impl Scene {
         self.intersect_with_stats(ray, &mut RayStats::default())
     }
 
-    /// The closest hit, counting traversal work into `stats`.
+    /// The closest hit, counting traversal work into `stats`. The interaction's `wo` is
+    /// exactly `-ray.direction.normalize()`.
     pub fn intersect_with_stats(
         &self,
         ray: &Ray,
