@@ -275,7 +275,15 @@ impl Scene {
         let mut t_max = ray.t_max;
         let mut merged_hit: Option<(usize, ShapeHit)> = None;
         for (k, m) in self.merged.iter().enumerate() {
-            if let Some(h) = m.intersect(&Ray { t_max, ..*ray }, stats) {
+            // Until a hit shortens it, the range is the ray's own: pass the ray itself
+            // rather than a copy (the copy's mixed-width stores stall the loads that
+            // set up the triangle test).
+            let h = if merged_hit.is_none() {
+                m.intersect(ray, stats)
+            } else {
+                m.intersect(&Ray { t_max, ..*ray }, stats)
+            };
+            if let Some(h) = h {
                 t_max = h.t;
                 merged_hit = Some((k, h));
             }
