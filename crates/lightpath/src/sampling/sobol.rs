@@ -116,7 +116,13 @@ fn permutation_element(mut i: u32, n: u32, p: u32) -> u32 {
             break;
         }
     }
-    (i.wrapping_add(p)) % n
+    let j = i.wrapping_add(p);
+    // The usual sample counts are powers of two: a mask instead of a division.
+    if n.is_power_of_two() {
+        j & (n - 1)
+    } else {
+        j % n
+    }
 }
 
 #[inline]
