@@ -64,14 +64,16 @@ impl PathTracer {
         let mut prev: Option<Previous> = None;
         let mut depth = 1u32;
         loop {
-            let dir = ray.direction.normalize();
             let Some(si) = scene.intersect_with_stats(&ray, stats) else {
+                let dir = ray.direction.normalize();
                 let le = scene.background(dir);
                 if le != Vec3::ZERO {
                     l += beta * le * self.environment_mis(scene, prev.as_ref(), dir);
                 }
                 break;
             };
+            // The unit ray direction (the scene sets `wo` to exactly its negation).
+            let dir = -si.wo;
             let inst = &scene.instances[si.instance as usize];
             if inst.emission.is_some() {
                 let le = scene.emitted(&si, si.wo);
@@ -91,7 +93,8 @@ impl PathTracer {
             let Some(material) = scene.material(&si) else {
                 break;
             };
-            let wo = si.wo;
+            // The shading frame and local wo, shared by the light and BSDF samples.
+            let bsdf = material.bsdf(&si, si.wo);
 
             // Next-event estimation: one light, one shadow ray.
             let u_light = sampler.next_1d();
@@ -101,7 +104,8 @@ impl PathTracer {
                 if let Some((index, pick)) = scene.light_sampler.sample(u_light) {
                     let light = &scene.lights[index];
                     if let Some(ls) = light.sample(si.p, u_prim, u_point) {
-                        let f = material.eval(&si, wo, ls.wi);
+                        let wi_local = bsdf.to_local(ls.wi);
+                        let f = bsdf.eval_local(wi_local);
                         if f != Vec3::ZERO && ls.weight != Vec3::ZERO {
                             let shadow = if ls.distance.is_finite() {
                                 si.spawn_ray_to(si.p + ls.wi * ls.distance)
@@ -112,7 +116,7 @@ impl PathTracer {
                                 let mis = if light.is_delta() {
                                     1.0
                                 } else {
-                                    power_heuristic(pick * ls.pdf, material.pdf(&si, wo, ls.wi))
+                                    power_heuristic(pick * ls.pdf, bsdf.pdf_local(wi_local))
                                 };
                                 l += beta * f * ls.weight * (mis / pick);
                             }
@@ -124,7 +128,7 @@ impl PathTracer {
             // Continue the path by sampling the BSDF.
             let u_lobe = sampler.next_1d();
             let u_dir = sampler.next_2d();
-            let Some(bs) = material.sample(&si, wo, u_lobe, u_dir) else {
+            let Some(bs) = bsdf.sample(u_lobe, u_dir) else {
                 break;
             };
             beta *= bs.weight;

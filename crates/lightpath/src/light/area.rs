@@ -16,8 +16,9 @@
 //! the side its shading normal points to.
 
 use super::LightSample;
-use crate::geometry::{Shape, SurfaceInteraction};
+use crate::geometry::{Shape, SurfaceInteraction, TriangleMesh};
 use crate::math::{Transform, PI};
+use crate::sampling::Distribution1D;
 use crate::texture::Texture;
 use glam::{Mat3, Vec2, Vec3};
 use std::sync::Arc;
@@ -32,11 +33,87 @@ impl Emission {
     /// Radiance leaving the surface at `si` in the unit direction `w`.
     #[inline]
     pub fn eval(&self, si: &SurfaceInteraction, w: Vec3) -> Vec3 {
-        if si.shading_n.dot(w) > 0.0 {
-            self.radiance.eval(si.uv)
+        self.eval_at(si.shading_n, si.uv, w)
+    }
+
+    /// Radiance leaving a point with unit shading normal `shading_n` and texture
+    /// coordinates `uv` in the unit direction `w`.
+    #[inline]
+    pub fn eval_at(&self, shading_n: Vec3, uv: Vec2, w: Vec3) -> Vec3 {
+        if shading_n.dot(w) > 0.0 {
+            self.radiance.eval(uv)
         } else {
             Vec3::ZERO
         }
+    }
+}
+
+/// A flat-shaded triangle mesh emitter set up for sampling: what `sample` needs of each
+/// triangle (its object-space corners and texture coordinates, its render-space normal
+/// and area density), so that a light sample costs a triangle pick, a barycentric warp
+/// and one point transform instead of a full interaction moved to render space. The
+/// values are those the general path computes, bit for bit.
+#[derive(Debug, Clone)]
+struct FlatMeshEmitter {
+    /// Triangles in proportion to their object-space area (the mesh's own distribution).
+    distribution: Distribution1D,
+    triangles: Vec<EmitterTriangle>,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct EmitterTriangle {
+    /// Object-space corners.
+    p: [Vec3; 3],
+    /// Texture coordinates of the corners.
+    uv: [Vec2; 3],
+    /// Render-space unit geometric normal (also the shading normal: the mesh is flat).
+    n: Vec3,
+    /// Render-space area density of the triangle's points.
+    area_pdf: f32,
+}
+
+impl FlatMeshEmitter {
+    /// `None` for meshes with interpolated normals (the general path handles them) and
+    /// for meshes without area.
+    fn new(m: &TriangleMesh, render_from_object: &Transform, light: &AreaLight) -> Option<Self> {
+        if m.smooth && !m.normals.is_empty() {
+            return None;
+        }
+        let distribution = m.area_distribution().clone();
+        let area = m.area();
+        if distribution.is_empty() || area.is_nan() || area <= 0.0 {
+            return None;
+        }
+        let ray = crate::math::Ray::new(Vec3::ZERO, Vec3::Z);
+        let triangles = (0..m.triangle_count() as u32)
+            .map(|prim| {
+                let (p0, p1, p2) = m.vertices(prim);
+                let uv = if m.uvs.is_empty() {
+                    [Vec2::ZERO, Vec2::X, Vec2::ONE]
+                } else {
+                    let [i0, i1, i2] = m.indices[prim as usize];
+                    [m.uvs[i0 as usize], m.uvs[i1 as usize], m.uvs[i2 as usize]]
+                };
+                // The normal as the general path finds it: the mesh's interaction (constant
+                // over a flat triangle) moved to render space.
+                let hit = crate::geometry::ShapeHit {
+                    t: 1.0,
+                    prim,
+                    uv: Vec2::splat(1.0 / 3.0),
+                };
+                let n = m.interaction(&ray, &hit).transformed(render_from_object).n;
+                EmitterTriangle {
+                    p: [p0, p1, p2],
+                    uv,
+                    n,
+                    area_pdf: light.render_area_pdf(1.0 / area, n),
+                }
+            })
+            .collect();
+        Some(FlatMeshEmitter {
+            distribution,
+            triangles,
+        })
     }
 }
 
@@ -54,6 +131,8 @@ pub struct AreaLight {
     sphere: Option<(Vec3, f32)>,
     /// Approximate render-space area, for power estimates.
     area: f32,
+    /// Flat triangle meshes, set up for sampling.
+    flat_mesh: Option<FlatMeshEmitter>,
 }
 
 impl AreaLight {
@@ -74,7 +153,7 @@ impl AreaLight {
             _ => None,
         };
         let area = shape.area() * abs_det.powf(2.0 / 3.0);
-        AreaLight {
+        let mut light = AreaLight {
             shape,
             render_from_object,
             emission,
@@ -82,7 +161,12 @@ impl AreaLight {
             abs_det,
             sphere,
             area,
+            flat_mesh: None,
+        };
+        if let Shape::TriangleMesh(m) = &*light.shape {
+            light.flat_mesh = FlatMeshEmitter::new(m, &render_from_object, &light);
         }
+        light
     }
 
     /// Emitted power (approximate for non-uniform scaling), for light selection.
@@ -113,7 +197,60 @@ impl AreaLight {
     }
 
     /// Samples light arriving at `p`.
+    #[inline]
     pub fn sample(&self, p: Vec3, u_prim: f32, u: Vec2) -> Option<LightSample> {
+        if let Some(mesh) = &self.flat_mesh {
+            return self.sample_flat_mesh(mesh, p, u_prim, u);
+        }
+        self.sample_general(p, u_prim, u)
+    }
+
+    /// `sample_general` for a flat triangle mesh, from its precomputed triangles.
+    #[inline]
+    fn sample_flat_mesh(
+        &self,
+        mesh: &FlatMeshEmitter,
+        p: Vec3,
+        u_prim: f32,
+        u: Vec2,
+    ) -> Option<LightSample> {
+        let (_, _, prim) = mesh.distribution.sample_continuous(u_prim);
+        let tri = &mesh.triangles[prim];
+        let b = crate::sampling::warp::square_to_uniform_triangle(u);
+        let (b1, b2) = (b.x, b.y);
+        let b0 = 1.0 - b1 - b2;
+        let [p0, p1, p2] = tri.p;
+        let q = self.render_from_object.point(p0 * b0 + p1 * b1 + p2 * b2);
+        let d = q - p;
+        let dist2 = d.length_squared();
+        if dist2 == 0.0 {
+            return None;
+        }
+        let dist = dist2.sqrt();
+        let wi = d / dist;
+        let cos_light = tri.n.dot(-wi).abs();
+        if cos_light == 0.0 {
+            return None;
+        }
+        let pdf = tri.area_pdf * dist2 / cos_light;
+        let [uv0, uv1, uv2] = tri.uv;
+        let le = self
+            .emission
+            .eval_at(tri.n, uv0 * b0 + uv1 * b1 + uv2 * b2, -wi);
+        if !(pdf > 0.0 && pdf.is_finite()) {
+            return None;
+        }
+        Some(LightSample {
+            wi,
+            distance: dist,
+            weight: le / pdf,
+            pdf,
+        })
+    }
+
+    /// Samples light arriving at `p` for any shape: by solid angle for spheres, else by
+    /// area through the shape's own sampling and interaction.
+    fn sample_general(&self, p: Vec3, u_prim: f32, u: Vec2) -> Option<LightSample> {
         if let Some((axis, dc, cos_max, sin2)) = self.cone(p) {
             return self.sample_cone(p, axis / dc, dc, cos_max, sin2, u);
         }
@@ -341,6 +478,57 @@ mod tests {
                     ls.wi
                 );
             }
+        }
+    }
+    /// The precomputed path for flat meshes gives the general path's samples bit for bit,
+    /// with and without texture coordinates, under a non-uniform mirroring transform.
+    #[test]
+    fn flat_mesh_sampling_equals_the_general_path() {
+        use crate::geometry::MeshData;
+        let mut rng = Pcg32::new(8, 5);
+        let t = Transform::scale(Vec3::new(-0.5, 1.0, 0.8))
+            .unwrap()
+            .then(&Transform::rotate(Vec3::new(1.0, 2.0, 3.0), 40.0).unwrap())
+            .then(&Transform::translate(Vec3::new(0.0, 0.0, 4.0)));
+        for with_uvs in [false, true] {
+            let mut data = MeshData::default();
+            for i in 0..12u32 {
+                for _ in 0..3 {
+                    data.positions.push(Vec3::new(
+                        rng.next_f32() * 2.0 - 1.0,
+                        rng.next_f32() * 2.0 - 1.0,
+                        rng.next_f32() - 0.5,
+                    ));
+                    if with_uvs {
+                        data.uvs.push(Vec2::new(rng.next_f32(), rng.next_f32()));
+                    }
+                }
+                data.indices.push([3 * i, 3 * i + 1, 3 * i + 2]);
+            }
+            let mesh =
+                crate::geometry::TriangleMesh::new(data, false, crate::accel::AccelKind::Bvh2)
+                    .unwrap();
+            let radiance = Arc::new(Texture::Checkerboard(crate::texture::Checkerboard {
+                scale: Vec2::splat(4.0),
+                color0: Vec3::new(1.0, 2.0, 3.0),
+                color1: Vec3::new(0.5, 0.25, 0.125),
+            }));
+            let l = AreaLight::new(
+                Arc::new(Shape::TriangleMesh(Arc::new(mesh))),
+                t,
+                Emission { radiance },
+            );
+            assert!(l.flat_mesh.is_some());
+            let mut some = 0;
+            for _ in 0..5000 {
+                let p = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 6.0 - 3.0;
+                let (u_prim, u) = (rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()));
+                let fast = l.sample(p, u_prim, u);
+                let general = l.sample_general(p, u_prim, u);
+                assert_eq!(fast, general, "{p:?} {u_prim} {u:?}");
+                some += fast.is_some_and(|s| s.weight != Vec3::ZERO) as u32;
+            }
+            assert!(some > 1000, "{some}");
         }
     }
 }

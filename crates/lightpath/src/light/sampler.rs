@@ -41,6 +41,10 @@ impl LightSampler {
     #[inline]
     pub fn sample(&self, u: f32) -> Option<(usize, f32)> {
         let d = self.distribution.as_ref()?;
+        if let [p] = self.probabilities[..] {
+            // One light (the distribution's only cell).
+            return Some((0, p));
+        }
         let (_, _, i) = d.sample_continuous(u);
         Some((i, self.probabilities[i]))
     }

@@ -158,17 +158,90 @@ pub(crate) fn mirror_to_upper(wo: Vec3, wi: Vec3) -> (Vec3, Vec3) {
     }
 }
 
+/// A material set up at one surface point: its shading frame, texture coordinates and
+/// the outgoing direction in that frame, computed once and shared by every evaluation
+/// and sample at the point (next-event estimation and the continuation of a path).
+#[derive(Debug, Clone, Copy)]
+pub struct Bsdf<'a> {
+    pub material: &'a Material,
+    pub frame: Frame,
+    pub uv: Vec2,
+    /// The outgoing direction in the local frame.
+    pub wo: Vec3,
+}
+
+impl<'a> Bsdf<'a> {
+    /// The BSDF of `material` at `si` for the render-space outgoing direction `wo`.
+    #[inline]
+    pub fn new(material: &'a Material, si: &SurfaceInteraction, wo: Vec3) -> Self {
+        let frame = shading_frame(si);
+        Bsdf {
+            material,
+            frame,
+            uv: si.uv,
+            wo: frame.to_local(wo),
+        }
+    }
+
+    /// A render-space direction in the local frame.
+    #[inline]
+    pub fn to_local(&self, w: Vec3) -> Vec3 {
+        self.frame.to_local(w)
+    }
+
+    /// f(wo, wi)·|cos θi| for a local `wi` (see [`Bsdf::to_local`]).
+    #[inline]
+    pub fn eval_local(&self, wi: Vec3) -> Vec3 {
+        self.material.eval_local(self.uv, self.wo, wi)
+    }
+
+    /// The density of a local `wi`.
+    #[inline]
+    pub fn pdf_local(&self, wi: Vec3) -> f32 {
+        self.material.pdf_local(self.uv, self.wo, wi)
+    }
+
+    /// f(wo, wi)·|cos θi| for a render-space unit `wi`.
+    #[inline]
+    pub fn eval(&self, wi: Vec3) -> Vec3 {
+        self.eval_local(self.to_local(wi))
+    }
+
+    /// Density with which `sample` picks the render-space `wi`.
+    #[inline]
+    pub fn pdf(&self, wi: Vec3) -> f32 {
+        self.pdf_local(self.to_local(wi))
+    }
+
+    /// Samples a render-space incident direction: `u_lobe` picks a lobe, `u` the
+    /// direction in it.
+    #[inline]
+    pub fn sample(&self, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        let mut bs = self.material.sample_local(self.uv, self.wo, u_lobe, u)?;
+        if !valid_pdf(bs.pdf) || !bs.weight.is_finite() {
+            return None;
+        }
+        bs.wi = self.frame.to_world(bs.wi);
+        Some(bs)
+    }
+}
+
 impl Material {
+    /// The material at `si` seen from the render-space direction `wo`, ready for
+    /// several evaluations and samples.
+    #[inline]
+    pub fn bsdf(&self, si: &SurfaceInteraction, wo: Vec3) -> Bsdf<'_> {
+        Bsdf::new(self, si, wo)
+    }
+
     /// f(wo, wi)·|cos θi| for render-space unit directions.
     pub fn eval(&self, si: &SurfaceInteraction, wo: Vec3, wi: Vec3) -> Vec3 {
-        let frame = shading_frame(si);
-        self.eval_local(si.uv, frame.to_local(wo), frame.to_local(wi))
+        self.bsdf(si, wo).eval(wi)
     }
 
     /// Density with which `sample` picks `wi` (0 for directions only delta lobes reach).
     pub fn pdf(&self, si: &SurfaceInteraction, wo: Vec3, wi: Vec3) -> f32 {
-        let frame = shading_frame(si);
-        self.pdf_local(si.uv, frame.to_local(wo), frame.to_local(wi))
+        self.bsdf(si, wo).pdf(wi)
     }
 
     /// Samples an incident direction: `u_lobe` picks a lobe, `u` the direction in it.
@@ -179,13 +252,7 @@ impl Material {
         u_lobe: f32,
         u: Vec2,
     ) -> Option<BsdfSample> {
-        let frame = shading_frame(si);
-        let mut bs = self.sample_local(si.uv, frame.to_local(wo), u_lobe, u)?;
-        if !valid_pdf(bs.pdf) || !bs.weight.is_finite() {
-            return None;
-        }
-        bs.wi = frame.to_world(bs.wi);
-        Some(bs)
+        self.bsdf(si, wo).sample(u_lobe, u)
     }
 
     /// f·|cos θi| in the local shading frame.

@@ -50,20 +50,40 @@ pub fn offset_ray_origin(p: Vec3, p_error: Vec3, n: Vec3, w: Vec3) -> Vec3 {
     }
     let po = p + offset;
     // Round away from p so the offset is not lost to rounding.
-    let round = |po: f32, off: f32| {
-        if off > 0.0 {
-            next_float_up(po)
-        } else if off < 0.0 {
-            next_float_down(po)
-        } else {
-            po
-        }
-    };
     Vec3::new(
-        round(po.x, offset.x),
-        round(po.y, offset.y),
-        round(po.z, offset.z),
+        round_away(po.x, offset.x),
+        round_away(po.y, offset.y),
+        round_away(po.z, offset.z),
     )
+}
+
+/// `next_float_up(po)` where `off > 0`, `next_float_down(po)` where `off < 0`, else
+/// `po`: the same values, computed with selects instead of branches (the offset's signs
+/// follow the normal and are unpredictable, and this runs for every spawned ray).
+#[inline(always)]
+fn round_away(po: f32, off: f32) -> f32 {
+    let bits = po.to_bits();
+    let up = off > 0.0;
+    // Moving away from zero adds one to the bit pattern, towards zero subtracts one; an
+    // infinity moving away from zero stays (as in `next_float_up`/`next_float_down`).
+    let away = up == (bits >> 31 == 0);
+    let stepped = if away {
+        if po.is_infinite() {
+            bits
+        } else {
+            bits.wrapping_add(1)
+        }
+    } else {
+        bits.wrapping_sub(1)
+    };
+    // ±0 steps to the smallest subnormal of the offset's sign.
+    let from_zero = if up { 1 } else { 0x8000_0001 };
+    let r = if po == 0.0 { from_zero } else { stepped };
+    if up || off < 0.0 {
+        f32::from_bits(r)
+    } else {
+        po
+    }
 }
 
 #[cfg(test)]
@@ -77,6 +97,49 @@ mod tests {
         assert!(next_float_up(0.0) > 0.0);
         assert!(next_float_down(0.0) < 0.0);
         assert!(next_float_up(-1.0) > -1.0);
+    }
+
+    /// The branch-free rounding gives `next_float_up`/`next_float_down` bit for bit,
+    /// zeros, subnormals and infinities included.
+    #[test]
+    fn round_away_matches_next_float() {
+        let mut values = vec![
+            0.0f32,
+            -0.0,
+            1.0,
+            -1.0,
+            f32::MIN_POSITIVE,
+            -f32::MIN_POSITIVE,
+            f32::from_bits(1),
+            f32::from_bits(0x8000_0001),
+            f32::MAX,
+            f32::MIN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+        ];
+        let mut rng = crate::sampling::Pcg32::new(5, 9);
+        for _ in 0..10_000 {
+            let v = f32::from_bits(rng.next_u32());
+            if !v.is_nan() {
+                values.push(v);
+            }
+        }
+        for &v in &values {
+            for off in [1e-3f32, -1e-3, 0.0, -0.0, f32::MIN_POSITIVE, -f32::INFINITY] {
+                let expected = if off > 0.0 {
+                    next_float_up(v)
+                } else if off < 0.0 {
+                    next_float_down(v)
+                } else {
+                    v
+                };
+                assert_eq!(
+                    round_away(v, off).to_bits(),
+                    expected.to_bits(),
+                    "{v} {off}"
+                );
+            }
+        }
     }
 
     #[test]

@@ -58,6 +58,7 @@ impl Distribution1D {
     }
 
     /// Samples a continuous position in [0, 1); returns (x, density, cell).
+    #[inline]
     pub fn sample_continuous(&self, u: f32) -> (f32, f32, usize) {
         // The last cell whose cdf start is <= u.
         let cell = self

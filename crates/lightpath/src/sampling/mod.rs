@@ -9,7 +9,7 @@ pub mod warp;
 
 pub use distribution::{Distribution1D, Distribution2D};
 pub use independent::IndependentSampler;
-pub use pcg32::Pcg32;
+pub use pcg32::{JumpMap, Pcg32};
 pub use sobol::SobolSampler;
 
 use glam::{UVec2, Vec2};

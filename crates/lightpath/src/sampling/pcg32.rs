@@ -2,7 +2,7 @@
 //! 2^63 selectable streams.
 
 /// The PCG-XSH-RR 64/32 generator.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Copy)]
 pub struct Pcg32 {
     state: u64,
     inc: u64,
@@ -40,20 +40,50 @@ impl Pcg32 {
 
     /// Skips `delta` steps ahead in O(log delta) (Brown 1994).
     pub fn advance(&mut self, delta: u64) {
-        let (mut cur_mult, mut cur_plus) = (MULTIPLIER, self.inc);
-        let (mut acc_mult, mut acc_plus) = (1u64, 0u64);
-        let mut delta = delta;
-        while delta > 0 {
-            if delta & 1 == 1 {
-                acc_mult = acc_mult.wrapping_mul(cur_mult);
-                acc_plus = acc_plus.wrapping_mul(cur_mult).wrapping_add(cur_plus);
-            }
-            cur_plus = cur_mult.wrapping_add(1).wrapping_mul(cur_plus);
-            cur_mult = cur_mult.wrapping_mul(cur_mult);
-            delta >>= 1;
-        }
+        let (acc_mult, acc_plus) = advance_map(delta, self.inc);
         self.state = acc_mult.wrapping_mul(self.state).wrapping_add(acc_plus);
     }
+
+    /// Skips ahead by the `delta` of `Pcg32::jump_map(delta)`, in O(1): the same state as
+    /// `advance(delta)`.
+    #[inline]
+    pub fn jump(&mut self, map: JumpMap) {
+        self.state = map
+            .mult
+            .wrapping_mul(self.state)
+            .wrapping_add(map.plus_per_inc.wrapping_mul(self.inc));
+    }
+
+    /// What `advance(delta)` does to the state of any stream, for [`Pcg32::jump`].
+    pub const fn jump_map(delta: u64) -> JumpMap {
+        // The added constant is linear in the stream's increment: compute it for 1.
+        let (mult, plus_per_inc) = advance_map(delta, 1);
+        JumpMap { mult, plus_per_inc }
+    }
+}
+
+/// A precomputed skip ahead: `advance(delta)` as state ↦ mult·state + plus_per_inc·inc.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct JumpMap {
+    mult: u64,
+    plus_per_inc: u64,
+}
+
+/// The affine map state ↦ mult·state + plus of `delta` steps of the stream with
+/// increment `inc`.
+const fn advance_map(mut delta: u64, inc: u64) -> (u64, u64) {
+    let (mut cur_mult, mut cur_plus) = (MULTIPLIER, inc);
+    let (mut acc_mult, mut acc_plus) = (1u64, 0u64);
+    while delta > 0 {
+        if delta & 1 == 1 {
+            acc_mult = acc_mult.wrapping_mul(cur_mult);
+            acc_plus = acc_plus.wrapping_mul(cur_mult).wrapping_add(cur_plus);
+        }
+        cur_plus = cur_mult.wrapping_add(1).wrapping_mul(cur_plus);
+        cur_mult = cur_mult.wrapping_mul(cur_mult);
+        delta >>= 1;
+    }
+    (acc_mult, acc_plus)
 }
 
 #[cfg(test)]
@@ -80,12 +110,26 @@ mod tests {
     #[test]
     fn advance_skips_ahead() {
         let mut a = Pcg32::new(7, 3);
-        let mut b = a.clone();
+        let mut b = a;
         for _ in 0..1000 {
             a.next_u32();
         }
         b.advance(1000);
         assert_eq!(a.next_u32(), b.next_u32());
+    }
+
+    #[test]
+    fn jump_equals_advance() {
+        for (seed, stream, delta) in [(7u64, 3u64, 1u64 << 16), (1, 99, 12345), (5, 1 << 40, 1)] {
+            let map = Pcg32::jump_map(delta);
+            let mut a = Pcg32::new(seed, stream);
+            let mut b = a;
+            for _ in 0..3 {
+                a.advance(delta);
+                b.jump(map);
+                assert_eq!(a.next_u32(), b.next_u32());
+            }
+        }
     }
 
     #[test]

@@ -26,9 +26,25 @@ pub struct SobolSampler {
 const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
 
 /// The second Sobol dimension (primitive polynomial x + 1): direction numbers
-/// v_k = v_{k-1} ⊕ (v_{k-1} >> 1), v_0 = 2^31.
+/// v_k = v_{k-1} ⊕ (v_{k-1} >> 1), v_0 = 2^31. The value is linear over GF(2) in the bits
+/// of `i`, so it is the XOR of one table entry per byte of `i`.
 #[inline]
-fn sobol_dim1(mut i: u32) -> u32 {
+fn sobol_dim1(i: u32) -> u32 {
+    let t = &SOBOL_DIM1_BYTES;
+    if i < 256 {
+        return t[0][i as usize];
+    }
+    t[0][(i & 0xff) as usize]
+        ^ t[1][((i >> 8) & 0xff) as usize]
+        ^ t[2][((i >> 16) & 0xff) as usize]
+        ^ t[3][(i >> 24) as usize]
+}
+
+/// `SOBOL_DIM1_BYTES[b][x]`: the second dimension's value of `x << (8 b)`.
+static SOBOL_DIM1_BYTES: [[u32; 256]; 4] = sobol_dim1_tables();
+
+/// The second Sobol dimension by its definition, one bit of `i` at a time.
+const fn sobol_dim1_bitwise(mut i: u32) -> u32 {
     let mut v = 1u32 << 31;
     let mut x = 0u32;
     while i != 0 {
@@ -39,6 +55,20 @@ fn sobol_dim1(mut i: u32) -> u32 {
         v ^= v >> 1;
     }
     x
+}
+
+const fn sobol_dim1_tables() -> [[u32; 256]; 4] {
+    let mut t = [[0u32; 256]; 4];
+    let mut b = 0;
+    while b < 4 {
+        let mut x = 0;
+        while x < 256 {
+            t[b][x] = sobol_dim1_bitwise((x as u32) << (8 * b));
+            x += 1;
+        }
+        b += 1;
+    }
+    t
 }
 
 /// Burley's hash-based Owen scramble of a 32-bit fixed-point value.
@@ -86,7 +116,13 @@ fn permutation_element(mut i: u32, n: u32, p: u32) -> u32 {
             break;
         }
     }
-    (i.wrapping_add(p)) % n
+    let j = i.wrapping_add(p);
+    // The usual sample counts are powers of two: a mask instead of a division.
+    if n.is_power_of_two() {
+        j & (n - 1)
+    } else {
+        j % n
+    }
 }
 
 #[inline]
@@ -154,6 +190,21 @@ impl SobolSampler {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn dim1_tables_equal_the_definition() {
+        let mut rng = crate::sampling::Pcg32::new(2, 3);
+        let special = [0u32, 1, 255, 256, 65535, 65536, u32::MAX];
+        for i in special
+            .into_iter()
+            .chain((0..100_000).map(|_| rng.next_u32()))
+        {
+            assert_eq!(sobol_dim1(i), sobol_dim1_bitwise(i), "{i}");
+        }
+        for i in 0..4096 {
+            assert_eq!(sobol_dim1(i), sobol_dim1_bitwise(i), "{i}");
+        }
+    }
 
     #[test]
     fn permutation_is_a_bijection() {

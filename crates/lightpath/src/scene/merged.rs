@@ -18,9 +18,23 @@ use std::sync::Arc;
 const MAX_MERGED_TRIANGLES: usize = 1 << 16;
 
 /// One render-space mesh made of several instances' meshes.
+///
+/// Meshes that carry different attributes (vertex normals, texture coordinates,
+/// smoothing) are merged too: `mesh` holds every triangle for intersection, and each set
+/// of attributes keeps a mesh of its own (`parts`) that builds the interactions of its
+/// triangles, so a ray walks one tree however the scene's meshes were written. A part's
+/// triangles have the same render-space corners as in `mesh`, so a hit's distance and
+/// barycentrics are valid in both.
 #[derive(Debug, Clone)]
 pub struct MergedMesh {
+    /// All triangles; also their attributes when there is a single part.
     pub mesh: TriangleMesh,
+    /// With several attribute sets: one mesh per set (brute-force accelerator, never
+    /// traversed). Empty when `mesh` has the attributes itself.
+    parts: Vec<TriangleMesh>,
+    /// Per merged triangle: its part and its index in that part (with several parts).
+    part: Vec<u32>,
+    part_prim: Vec<u32>,
     /// Per merged triangle: the instance it came from and its index in that mesh.
     instance: Vec<u32>,
     prim: Vec<u32>,
@@ -28,8 +42,9 @@ pub struct MergedMesh {
 
 impl MergedMesh {
     /// Groups the mergeable instances by the attributes their meshes carry (normals,
-    /// texture coordinates, smoothing must agree within one mesh) and merges each group of
-    /// at least two. Returns the merged meshes and, per instance, whether it was merged.
+    /// texture coordinates, smoothing must agree within one part) and merges all of them
+    /// into one mesh when there are at least two. Returns the merged meshes (at most one)
+    /// and, per instance, whether it was merged.
     pub fn build(instances: &[Instance], accel: AccelKind) -> (Vec<MergedMesh>, Vec<bool>) {
         let mut uses: HashMap<*const TriangleMesh, usize> = HashMap::new();
         for inst in instances {
@@ -53,19 +68,19 @@ impl MergedMesh {
             groups.entry(key).or_default().push(i as u32);
         }
         let mut merged_flags = vec![false; instances.len()];
-        let mut merged = Vec::new();
+        if groups.values().map(Vec::len).sum::<usize>() < 2 {
+            return (Vec::new(), merged_flags);
+        }
         let mut keys: Vec<_> = groups.keys().copied().collect();
         keys.sort();
+        // Each attribute set's triangles in render space.
+        let mut part_data = Vec::new();
+        let (mut part, mut part_prim, mut instance, mut prim) =
+            (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for key in keys {
-            let members = &groups[&key];
-            if members.len() < 2 {
-                continue;
-            }
             let (with_normals, with_uvs, smooth) = key;
             let mut data = MeshData::default();
-            let mut instance = Vec::new();
-            let mut prim = Vec::new();
-            for &i in members {
+            for &i in &groups[&key] {
                 let inst = &instances[i as usize];
                 let Shape::TriangleMesh(m) = &*inst.shape else {
                     unreachable!()
@@ -86,21 +101,53 @@ impl MergedMesh {
                 let flip = to.swaps_handedness();
                 for (k, t) in m.indices.iter().enumerate() {
                     let [a, b, c] = t.map(|v| v + base);
+                    part.push(part_data.len() as u32);
+                    part_prim.push(data.indices.len() as u32);
                     data.indices.push(if flip { [a, c, b] } else { [a, b, c] });
                     instance.push(i);
                     prim.push(k as u32);
                 }
                 merged_flags[i as usize] = true;
             }
-            // The data comes from valid meshes; a failure here would be a bug.
-            let mesh = TriangleMesh::new(data, smooth, accel).expect("merged mesh data is valid");
-            merged.push(MergedMesh {
-                mesh,
-                instance,
-                prim,
-            });
+            part_data.push((data, smooth));
         }
-        (merged, merged_flags)
+        // The data comes from valid meshes; a failure here would be a bug.
+        let valid = "merged mesh data is valid";
+        let (mesh, parts) = if part_data.len() == 1 {
+            let (data, smooth) = part_data.pop().unwrap();
+            (
+                TriangleMesh::new(data, smooth, accel).expect(valid),
+                Vec::new(),
+            )
+        } else {
+            let mut all = MeshData::default();
+            for (data, _) in &part_data {
+                let base = all.positions.len() as u32;
+                all.positions.extend_from_slice(&data.positions);
+                all.indices
+                    .extend(data.indices.iter().map(|t| t.map(|v| v + base)));
+            }
+            let parts = part_data
+                .into_iter()
+                .map(|(data, smooth)| {
+                    TriangleMesh::new(data, smooth, AccelKind::List).expect(valid)
+                })
+                .collect();
+            (TriangleMesh::new(all, false, accel).expect(valid), parts)
+        };
+        if parts.is_empty() {
+            part.clear();
+            part_prim.clear();
+        }
+        let merged = MergedMesh {
+            mesh,
+            parts,
+            part,
+            part_prim,
+            instance,
+            prim,
+        };
+        (vec![merged], merged_flags)
     }
 
     #[inline]
@@ -115,10 +162,19 @@ impl MergedMesh {
 
     /// The render-space interaction of a hit, naming the original instance and triangle.
     pub fn interaction(&self, ray: &Ray, hit: &ShapeHit) -> SurfaceInteraction {
-        let mut si = self.mesh.interaction(ray, hit);
+        let k = hit.prim as usize;
+        let mut si = if self.parts.is_empty() {
+            self.mesh.interaction(ray, hit)
+        } else {
+            let part_hit = ShapeHit {
+                prim: self.part_prim[k],
+                ..*hit
+            };
+            self.parts[self.part[k] as usize].interaction(ray, &part_hit)
+        };
         si.wo = -ray.direction.normalize();
-        si.instance = self.instance[hit.prim as usize];
-        si.prim = self.prim[hit.prim as usize];
+        si.instance = self.instance[k];
+        si.prim = self.prim[k];
         si
     }
 
@@ -221,5 +277,84 @@ mod tests {
         }
         assert!(checked > 2_000, "{checked}");
         assert!(hits >= checked);
+    }
+    /// Meshes with different attributes (flat, smooth with vertex normals, with texture
+    /// coordinates) are merged into one tree, and each hit still gets its own mesh's
+    /// shading normal and texture coordinates.
+    #[test]
+    fn meshes_with_different_attributes_merge_into_one_tree() {
+        let mut rng = Pcg32::new(4, 8);
+        let mut b = SceneBuilder::new();
+        for k in 0..3 {
+            let mut m = random_mesh(&mut rng, 25);
+            let n = m.positions.len();
+            let smooth = k == 1;
+            if smooth {
+                m.normals = (0..n)
+                    .map(|_| {
+                        warp::square_to_uniform_sphere(Vec2::new(rng.next_f32(), rng.next_f32()))
+                    })
+                    .collect();
+            }
+            if k == 2 {
+                m.uvs = (0..n)
+                    .map(|_| Vec2::new(rng.next_f32(), rng.next_f32()))
+                    .collect();
+            }
+            let data = MeshData {
+                positions: m.positions.clone(),
+                normals: m.normals.clone(),
+                uvs: m.uvs.clone(),
+                indices: m.indices.clone(),
+            };
+            let mesh = TriangleMesh::new(data, smooth, crate::accel::AccelKind::Bvh2).unwrap();
+            let id = b.add_shape(Shape::TriangleMesh(Arc::new(mesh)));
+            // Mirrored, but a similarity: a non-uniform scale can turn a vertex normal
+            // to the other side of the face in render space than in object space.
+            let t = Transform::scale(Vec3::new(if k == 1 { -1.2 } else { 1.0 }, 1.2, 1.2))
+                .unwrap()
+                .then(&Transform::translate(Vec3::new(
+                    k as f32 * 1.5 - 1.5,
+                    0.0,
+                    0.0,
+                )));
+            b.add_instance(id, t);
+        }
+        let scene = b.build();
+        assert_eq!(scene.merged.len(), 1);
+        assert_eq!(scene.merged[0].parts.len(), 3);
+        let mut checked = [0; 3];
+        for _ in 0..20_000 {
+            let o =
+                warp::square_to_uniform_sphere(Vec2::new(rng.next_f32(), rng.next_f32())) * 10.0;
+            let target = (Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5)
+                * Vec3::new(6.0, 3.0, 3.0);
+            let ray = Ray::new(o, target - o);
+            let Some(g) = scene.intersect(&ray) else {
+                continue;
+            };
+            let inst = &scene.instances[g.instance as usize];
+            let Some(h) = inst.intersect(&ray, f32::INFINITY, &mut Default::default()) else {
+                continue;
+            };
+            if h.prim != g.prim || (h.t - g.t).abs() > 1e-4 * g.t {
+                continue; // a nearer triangle of another instance at almost the same distance
+            }
+            let si = inst.interaction(&ray, &h);
+            assert!(g.n.dot(si.n) > 0.999, "{:?} vs {:?}", g.n, si.n);
+            assert!(
+                g.shading_n.dot(si.shading_n) > 0.999,
+                "{:?} vs {:?}",
+                g.shading_n,
+                si.shading_n
+            );
+            // (Only the mesh with texture coordinates: a mirrored mesh without them gets
+            // the default parameterisation on its swapped corners.)
+            if g.instance == 2 {
+                assert!((g.uv - si.uv).length() < 1e-3, "{:?} vs {:?}", g.uv, si.uv);
+            }
+            checked[g.instance as usize] += 1;
+        }
+        assert!(checked.iter().all(|&c| c > 500), "{checked:?}");
     }
 }
