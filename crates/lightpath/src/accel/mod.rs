@@ -8,6 +8,7 @@
 
 pub mod bsp;
 pub mod bvh;
+mod bvh_build;
 mod cover;
 pub mod grid;
 pub mod kdtree;
