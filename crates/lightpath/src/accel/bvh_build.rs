@@ -35,6 +35,8 @@ use rayon::prelude::*;
 /// Ranges above this many primitives split into two halves built in parallel; a range
 /// at or below it is built by one task.
 const TASK_SIZE: usize = 4096;
+/// Ranges of at least this many primitives are binned into two sets of bins.
+const INTERLEAVE_SIZE: usize = 128;
 /// Ranges above this many primitives are binned in parallel ...
 const PAR_BIN_SIZE: usize = 1 << 16;
 /// ... in chunks of this many.
@@ -279,7 +281,28 @@ impl Bins {
         }
     }
 
-    fn merge(mut self, o: Bins) -> Bins {
+    /// Bins the primitives alternately into `self` and `other`, then merges `other` in:
+    /// two independent chains of read-modify-writes where neighbouring primitives
+    /// (often in the same bins) would otherwise wait for each other's stores.
+    #[inline]
+    fn add_interleaved(&mut self, other: &mut Bins, prims: &[PrimRef], binner: &Binner) {
+        let pairs = prims.chunks_exact(2);
+        let rest = pairs.remainder();
+        for pair in pairs {
+            let (p, q) = (&pair[0], &pair[1]);
+            let (bp, bq) = (binner.bins(p), binner.bins(q));
+            for axis in 0..3 {
+                self.boxes[bp[axis]][axis].grow(p);
+                self.counts[bp[axis]][axis] += 1;
+                other.boxes[bq[axis]][axis].grow(q);
+                other.counts[bq[axis]][axis] += 1;
+            }
+        }
+        self.add(rest, binner);
+        self.merge_from(other);
+    }
+
+    fn merge_from(&mut self, o: &Bins) {
         for (a, b) in self.boxes.iter_mut().zip(o.boxes.iter()).take(self.bins) {
             for axis in 0..3 {
                 a[axis] = a[axis].union(&b[axis]);
@@ -290,6 +313,10 @@ impl Bins {
                 a[axis] += b[axis];
             }
         }
+    }
+
+    fn merge(mut self, o: Bins) -> Bins {
+        self.merge_from(&o);
         self
     }
 }
@@ -317,6 +344,7 @@ fn counts4(c: &[u32; 4]) -> Vec4 {
 /// Reused buffers of one task.
 struct Scratch {
     bins: Bins,
+    bins2: Bins,
     /// Area-weighted counts and counts of everything right of each bin boundary (lanes:
     /// axes).
     right: Vec<(Vec4, Vec4)>,
@@ -332,6 +360,7 @@ impl Scratch {
     fn new(bins: usize) -> Scratch {
         Scratch {
             bins: Bins::new(bins),
+            bins2: Bins::new(bins),
             right: vec![(Vec4::ZERO, Vec4::ZERO); bins],
             order: Default::default(),
             sweep_right: Vec::new(),
@@ -514,7 +543,7 @@ impl Builder {
                 .par_chunks(BIN_CHUNK)
                 .map(|c| {
                     let mut b = Bins::new(nb);
-                    b.add(c, &binner);
+                    b.add_interleaved(&mut Bins::new(nb), c, &binner);
                     b
                 })
                 .reduce_with(Bins::merge)
@@ -522,7 +551,14 @@ impl Builder {
             &par
         } else {
             scratch.bins.clear();
-            scratch.bins.add(prims, &binner);
+            if prims.len() >= INTERLEAVE_SIZE {
+                scratch.bins2.clear();
+                scratch
+                    .bins
+                    .add_interleaved(&mut scratch.bins2, prims, &binner);
+            } else {
+                scratch.bins.add(prims, &binner);
+            }
             &scratch.bins
         };
         // Minimise area-weighted counts (the parent's area and the traversal cost are
