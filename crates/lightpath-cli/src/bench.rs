@@ -26,8 +26,8 @@ pub struct BenchArgs {
     /// `embree-bench gen-rays MESH --outdir DIR`); missing sets are skipped.
     #[arg(long)]
     pub rays: PathBuf,
-    /// Accelerators to measure (repeatable): list, bvh2, bvh4, bvh-course, grid, octree,
-    /// kdtree, bsp.
+    /// Accelerators to measure (repeatable): list, bvh2, bvh4, bvh2-hq, bvh4-hq,
+    /// bvh-course, grid, octree, kdtree, bsp.
     #[arg(long, default_values_t = vec!["bvh2".to_string(), "bvh4".to_string()],
           value_parser = crate::names::ACCELS)]
     pub accel: Vec<String>,

@@ -24,13 +24,18 @@
 //!   node array, in the final layout (depth first, siblings adjacent). The arrays are
 //!   joined once at the end, below the few top-level nodes.
 //!
+//! - **Reinsertion** (`BuildSettings::reinsertion_passes`, the `HIGH` preset): after the
+//!   build, every node, largest first, is taken out and put back where it adds the least
+//!   SAH cost; then the nodes are laid out depth first again.
+//!
 //! Every decision depends on the data and on fixed sizes only, never on the number of
 //! threads or on timing, so the tree is the same for any thread count.
 
-use super::bvh::{BuildSettings, BvhNode, MEDIAN_DEPTH};
+use super::bvh::{BuildSettings, BvhNode, MEDIAN_DEPTH, STACK_SIZE};
 use crate::math::Bounds3;
-use glam::{BVec4A, Mat4, Vec4};
+use glam::{BVec4A, Mat4, Vec3, Vec4};
 use rayon::prelude::*;
+use std::cmp::Reverse;
 
 /// Ranges above this many primitives split into two halves built in parallel; a range
 /// at or below it is built by one task.
@@ -852,6 +857,146 @@ fn count_nodes(top: &Top) -> usize {
     }
 }
 
+fn node_box(n: &BvhNode) -> Aabb {
+    Aabb {
+        min: Vec3::from_array(n.min).extend(0.0),
+        max: Vec3::from_array(n.max).extend(0.0),
+    }
+}
+
+/// Reinsertion (Bittner et al. 2013, sequential): each of the largest nodes in turn is
+/// taken out of the tree (its sibling takes its parent's place) and put back beside the
+/// node where it adds the least SAH cost (found by branch and bound from the root), which
+/// may be where it was. `fraction` of the nodes, largest first, in each of `passes`
+/// passes. Deterministic: one fixed order.
+fn reinsert(nodes: &mut [BvhNode], passes: usize, fraction: f32) {
+    const NONE: u32 = u32::MAX;
+    if nodes.len() < 5 {
+        return; // nothing below the root's children
+    }
+    let mut parent = vec![NONE; nodes.len()];
+    for (i, n) in nodes.iter().enumerate() {
+        if n.count == 0 {
+            parent[n.left_or_first as usize] = i as u32;
+            parent[n.left_or_first as usize + 1] = i as u32;
+        }
+    }
+    let area = |n: &BvhNode| node_box(n).half_area();
+    // Recomputes the boxes of `at` and its ancestors (while they change).
+    fn refit(nodes: &mut [BvhNode], parent: &[u32], mut at: u32) {
+        while at != u32::MAX {
+            let n = &nodes[at as usize];
+            let c = n.left_or_first as usize;
+            let b = node_box(&nodes[c]).union(&node_box(&nodes[c + 1]));
+            let (min, max) = (b.min3(), b.max3());
+            let n = &mut nodes[at as usize];
+            if n.min == min && n.max == max {
+                break;
+            }
+            n.min = min;
+            n.max = max;
+            at = parent[at as usize];
+        }
+    }
+    let mut heap = std::collections::BinaryHeap::new();
+    for _ in 0..passes {
+        let mut order: Vec<(f32, u32)> = (1..nodes.len() as u32)
+            .map(|i| (area(&nodes[i as usize]), i))
+            .collect();
+        let take = ((order.len() as f32 * fraction) as usize).clamp(1, order.len());
+        order.select_nth_unstable_by(take - 1, |a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        order.truncate(take);
+        order.sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        for &(_, n) in &order {
+            let p = parent[n as usize];
+            if p == NONE || parent[p as usize] == NONE {
+                continue; // the root or a child of the root
+            }
+            let pair = nodes[p as usize].left_or_first;
+            let s = if n == pair { pair + 1 } else { pair };
+            // Take n out: its sibling's record moves into the parent's slot.
+            nodes[p as usize] = nodes[s as usize];
+            if nodes[p as usize].count == 0 {
+                let c = nodes[p as usize].left_or_first as usize;
+                parent[c] = p;
+                parent[c + 1] = p;
+            }
+            refit(nodes, &parent, parent[p as usize]);
+            // The best node to pair n with.
+            let nb = node_box(&nodes[n as usize]);
+            let na = nb.half_area();
+            let mut best = (f32::INFINITY, 0u32);
+            heap.clear();
+            // Keyed by the induced cost's bits: it is never negative, and non-negative
+            // floats order as their bits do.
+            heap.push((Reverse(0.0f32.to_bits()), 0u32));
+            while let Some((Reverse(induced), x)) = heap.pop() {
+                let induced = f32::from_bits(induced);
+                if induced + na >= best.0 {
+                    break;
+                }
+                let xb = node_box(&nodes[x as usize]);
+                let joined = xb.union(&nb).half_area();
+                if induced + joined < best.0 {
+                    best = (induced + joined, x);
+                }
+                let xn = &nodes[x as usize];
+                if xn.count == 0 {
+                    let child_induced = induced + joined - xb.half_area();
+                    if child_induced + na < best.0 {
+                        let c = xn.left_or_first;
+                        heap.push((Reverse(child_induced.to_bits()), c));
+                        heap.push((Reverse(child_induced.to_bits()), c + 1));
+                    }
+                }
+            }
+            // Pair n with x: x's record moves into the free slot s, a new inner node
+            // over the pair (n, s) takes x's slot.
+            let x = best.1;
+            nodes[s as usize] = nodes[x as usize];
+            if nodes[s as usize].count == 0 {
+                let c = nodes[s as usize].left_or_first as usize;
+                parent[c] = s;
+                parent[c + 1] = s;
+            }
+            let b = node_box(&nodes[s as usize]).union(&nb);
+            nodes[x as usize] = BvhNode {
+                min: b.min3(),
+                left_or_first: pair,
+                max: b.max3(),
+                count: 0,
+            };
+            parent[n as usize] = x;
+            parent[s as usize] = x;
+            refit(nodes, &parent, parent[x as usize]);
+        }
+    }
+}
+
+/// The nodes in depth-first order with siblings adjacent (the builder's layout, which
+/// reinsertion disturbs); returns them with the tree's depth (the root alone: 1).
+fn relayout(nodes: &[BvhNode]) -> (Vec<BvhNode>, usize) {
+    let mut out = Vec::with_capacity(nodes.len());
+    out.push(PLACEHOLDER);
+    let mut stack = vec![(0usize, 0usize, 1usize)];
+    let mut max_depth = 1;
+    while let Some((old, new, depth)) = stack.pop() {
+        max_depth = max_depth.max(depth);
+        let mut n = nodes[old];
+        if n.count == 0 {
+            let left = out.len();
+            out.push(PLACEHOLDER);
+            out.push(PLACEHOLDER);
+            let c = n.left_or_first as usize;
+            stack.push((c + 1, left + 1, depth + 1));
+            stack.push((c, left, depth + 1));
+            n.left_or_first = left as u32;
+        }
+        out[new] = n;
+    }
+    (out, max_depth)
+}
+
 /// Builds the nodes and primitive order of a BVH over `boxes` (non-empty); returns them
 /// with the tree's depth (the root alone: 1).
 pub(super) fn build(
@@ -925,5 +1070,14 @@ pub(super) fn build(
         }
     };
     let prim_indices = prims.par_iter().map(PrimRef::index).collect();
+    if settings.reinsertion_passes > 0 && settings.traversal_cost > 0.0 && empty == 0 {
+        let mut optimised = nodes.clone();
+        reinsert(&mut optimised, settings.reinsertion_passes, 1.0);
+        let (optimised, optimised_depth) = relayout(&optimised);
+        // Reinsertion deepens some subtrees: keep it only within the traversal stack.
+        if optimised_depth <= STACK_SIZE - 8 {
+            return (optimised, prim_indices, optimised_depth);
+        }
+    }
     (nodes, prim_indices, depth + 1)
 }

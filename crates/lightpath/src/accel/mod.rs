@@ -54,6 +54,10 @@ pub enum AccelKind {
     BvhCourse,
     /// The binary SAH tree collapsed into 4-wide nodes tested with SIMD.
     Bvh4,
+    /// `Bvh2` built with `BuildSettings::HIGH` (slower build, lower SAH cost).
+    Bvh2High,
+    /// `Bvh4` collapsed from a `BuildSettings::HIGH` tree.
+    Bvh4High,
     /// Uniform grid traversed by 3D-DDA, with per-ray mailboxing.
     Grid,
     /// Octree split at node centres, traversed front to back.
@@ -70,6 +74,8 @@ impl AccelKind {
         "bvh2",
         "bvh",
         "bvh4",
+        "bvh2-hq",
+        "bvh4-hq",
         "bvh-course",
         "grid",
         "octree",
@@ -83,6 +89,8 @@ impl AccelKind {
             "bvh" | "bvh2" => Some(AccelKind::Bvh2),
             "bvh-course" => Some(AccelKind::BvhCourse),
             "bvh4" => Some(AccelKind::Bvh4),
+            "bvh2-hq" => Some(AccelKind::Bvh2High),
+            "bvh4-hq" => Some(AccelKind::Bvh4High),
             "grid" => Some(AccelKind::Grid),
             "octree" => Some(AccelKind::Octree),
             "kdtree" => Some(AccelKind::KdTree),
@@ -112,6 +120,8 @@ impl Accel {
             AccelKind::Bvh2 => Accel::Bvh(Bvh::build(bounds, &bvh::BuildSettings::default())),
             AccelKind::BvhCourse => Accel::Bvh(Bvh::build(bounds, &bvh::BuildSettings::COURSE)),
             AccelKind::Bvh4 => Accel::Bvh4(Bvh4::build(bounds, &bvh::BuildSettings::default())),
+            AccelKind::Bvh2High => Accel::Bvh(Bvh::build(bounds, &bvh::BuildSettings::HIGH)),
+            AccelKind::Bvh4High => Accel::Bvh4(Bvh4::build(bounds, &bvh::BuildSettings::HIGH)),
             AccelKind::Grid => Accel::Grid(Grid::build(bounds)),
             AccelKind::Octree => Accel::Octree(Octree::build(bounds)),
             AccelKind::KdTree => Accel::KdTree(KdTree::build(bounds)),
