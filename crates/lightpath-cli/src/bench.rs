@@ -26,8 +26,8 @@ pub struct BenchArgs {
     /// `embree-bench gen-rays MESH --outdir DIR`); missing sets are skipped.
     #[arg(long)]
     pub rays: PathBuf,
-    /// Accelerators to measure (repeatable): list, bvh2, bvh4, bvh8, bvh-course, grid, octree,
-    /// kdtree, bsp.
+    /// Accelerators to measure (repeatable): list, bvh2, bvh4, bvh8, bvh2-hq, bvh4-hq,
+    /// bvh8-hq, bvh-course, grid, octree, kdtree, bsp.
     #[arg(long, default_values_t = vec!["bvh2".to_string(), "bvh4".to_string(), "bvh8".to_string()],
           value_parser = crate::names::ACCELS)]
     pub accel: Vec<String>,
@@ -136,6 +136,11 @@ pub fn run(args: BenchArgs) -> Result<()> {
         }
         let mesh = mesh.expect("built");
         let bytes = mesh.accel_memory_bytes();
+        // The binary tree's quality (bvh4 and bvh8 collapse the same tree).
+        let bvh_stats = match &mesh.accel {
+            lightpath::accel::Accel::Bvh(b) => Some(b.stats),
+            _ => None,
+        };
         if let Some(path) = &args.heatmap {
             let Some((_, _, rays)) = sets.iter().find(|(set, ..)| *set == "primary") else {
                 bail!(
@@ -190,6 +195,9 @@ pub fn run(args: BenchArgs) -> Result<()> {
             traversal.insert(variant.into(), Value::Object(per_set));
         }
         let build_median = median(build_ms);
+        let sah = bvh_stats.map_or(String::new(), |s| {
+            format!("  SAH cost {:.3}, depth {}", s.sah_cost, s.max_depth)
+        });
         println!(
             "{:<11} {:>9.1} {:>9.1} {:>8.2} |{}\n{:<41}|{}",
             name,
@@ -197,14 +205,15 @@ pub fn run(args: BenchArgs) -> Result<()> {
             bytes as f64 / triangles.max(1) as f64,
             bytes as f64 / 1e6,
             line[0],
-            "",
+            sah,
             line[1]
         );
         report.insert(
             name.clone(),
             json!({
                 "build": {"ms_median": build_median, "bvh_bytes": bytes,
-                          "bytes_per_tri": bytes as f64 / triangles.max(1) as f64},
+                          "bytes_per_tri": bytes as f64 / triangles.max(1) as f64,
+                          "sah_cost": bvh_stats.map(|s| s.sah_cost)},
                 "traversal": Value::Object(traversal),
             }),
         );

@@ -95,8 +95,10 @@ pub struct RenderOptions {
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Acceleration structure: list, bvh2, bvh4, bvh-course, grid, octree, kdtree, bsp
-    /// (default: the scene dialect's; lightwave scenes use bvh-course, the course's BVH).
+    /// Acceleration structure: list, bvh2, bvh4, bvh8, bvh2-hq, bvh4-hq, bvh8-hq (their
+    /// high-quality builds: slower, lower SAH cost), bvh-course, grid, octree, kdtree, bsp
+    /// (default: bvh8; lightwave scenes with the `bvh` statistics view use bvh-course,
+    /// the course's BVH).
     #[arg(long, value_parser = names::ACCELS, value_name = "KIND")]
     pub accel: Option<String>,
     /// Sampler: independent or sobol (default: the scene's).

@@ -30,7 +30,8 @@ pub struct RaysArgs {
     /// Any-hit (shadow) queries instead of closest hits.
     #[arg(long)]
     pub occluded: bool,
-    /// Acceleration structure: list, bvh2, bvh4, bvh8 (default), bvh-course, grid, octree, kdtree, bsp.
+    /// Acceleration structure: list, bvh2, bvh4, bvh8 (default), bvh2-hq, bvh4-hq, bvh8-hq,
+    /// bvh-course, grid, octree, kdtree, bsp.
     #[arg(long, default_value = "bvh8", value_parser = crate::names::ACCELS)]
     pub accel: String,
     /// Trace only the first N rays (e.g. for the brute-force list).

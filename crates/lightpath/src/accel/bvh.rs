@@ -1,5 +1,5 @@
-//! Bounding volume hierarchy: a binned SAH build (parallel with rayon) into compact
-//! 32-byte nodes, traversed front to back.
+//! Bounding volume hierarchy: a binned SAH build (parallel with rayon; see
+//! `bvh_build.rs`) into compact 32-byte nodes, traversed front to back.
 //!
 //! Node layout ([`BvhNode`], 32 bytes, two per 64-byte cache line):
 //!
@@ -15,6 +15,7 @@
 use super::RayStats;
 use crate::math::{Bounds3, Ray};
 use glam::Vec3;
+use rayon::prelude::*;
 use std::time::Instant;
 
 /// A 32-byte BVH node; see the module docs for the layout.
@@ -85,7 +86,7 @@ const ROBUST_FAR: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f3
 /// Build parameters. Use the named presets.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BuildSettings {
-    /// SAH bins per axis.
+    /// SAH bins per axis (2 to 256).
     pub bins: usize,
     /// Largest leaf.
     pub max_leaf_size: usize,
@@ -94,6 +95,14 @@ pub struct BuildSettings {
     /// Make a leaf where splitting costs more than testing every primitive (SAH
     /// termination); without it, nodes split down to `max_leaf_size`.
     pub cost_termination: bool,
+    /// Ranges of at most this many primitives are split by a full SAH sweep over their
+    /// centroids in sorted order (every split between neighbours, a superset of the
+    /// binned candidates) instead of by bins; 0: bins everywhere.
+    pub sweep_size: usize,
+    /// Passes of reinsertion after the build (every node, largest first, is taken out
+    /// and put back where it adds the least SAH cost); 0: none. Needs a positive
+    /// `traversal_cost` (it moves inner nodes' boxes).
+    pub reinsertion_passes: usize,
 }
 
 impl Default for BuildSettings {
@@ -109,6 +118,8 @@ impl BuildSettings {
         max_leaf_size: 8,
         traversal_cost: 1.0,
         cost_termination: true,
+        sweep_size: 16,
+        reinsertion_passes: 0,
     };
     /// The default.
     pub const QUALITY: BuildSettings = BuildSettings {
@@ -116,6 +127,18 @@ impl BuildSettings {
         max_leaf_size: 8,
         traversal_cost: 1.0,
         cost_termination: true,
+        sweep_size: 16,
+        reinsertion_passes: 0,
+    };
+    /// A slower build for a better tree: 64 bins, a full SAH sweep over ranges of up to
+    /// 64 primitives, then one pass of reinsertion.
+    pub const HIGH: BuildSettings = BuildSettings {
+        bins: 64,
+        max_leaf_size: 8,
+        traversal_cost: 1.0,
+        cost_termination: true,
+        sweep_size: 64,
+        reinsertion_passes: 1,
     };
     /// The lightwave course's textbook build: binned SAH with no cost termination and
     /// leaves of at most two primitives, which reproduces the course's traversal
@@ -127,6 +150,8 @@ impl BuildSettings {
         max_leaf_size: 2,
         traversal_cost: 0.0,
         cost_termination: false,
+        sweep_size: 0,
+        reinsertion_passes: 0,
     };
 }
 
@@ -151,261 +176,65 @@ pub struct Bvh {
     pub stats: BvhStats,
 }
 
-/// A node of the build tree before flattening.
-enum BuildNode {
-    Leaf {
-        bounds: Bounds3,
-        first: usize,
-        count: usize,
-    },
-    Inner {
-        bounds: Bounds3,
-        children: Box<[BuildNode; 2]>,
-    },
-}
-
-impl BuildNode {
-    fn bounds(&self) -> Bounds3 {
-        match self {
-            BuildNode::Leaf { bounds, .. } | BuildNode::Inner { bounds, .. } => *bounds,
-        }
-    }
-}
-
 /// Traversal stack size; no tree is deeper than this.
-const STACK_SIZE: usize = 128;
+pub(super) const STACK_SIZE: usize = 128;
 /// Depth from which the builder splits at the median: 96 + log2(2^32) = 128.
-const MEDIAN_DEPTH: usize = 96;
-
-/// Below this many primitives a subtree is built on the current thread.
-const PARALLEL_THRESHOLD: usize = 4096;
-
-struct Builder<'a> {
-    boxes: &'a [Bounds3],
-    centroids: &'a [Vec3],
-    settings: BuildSettings,
-}
-
-#[derive(Clone, Copy)]
-struct Bin {
-    bounds: Bounds3,
-    count: usize,
-}
-
-impl Builder<'_> {
-    fn build(&self, indices: &mut [u32], offset: usize, depth: usize) -> BuildNode {
-        let mut bounds = Bounds3::EMPTY;
-        let mut cbounds = Bounds3::EMPTY;
-        for &i in indices.iter() {
-            bounds = bounds.union(&self.boxes[i as usize]);
-            cbounds.expand(self.centroids[i as usize]);
-        }
-        let n = indices.len();
-        if n == 1 || (!self.settings.cost_termination && n <= self.settings.max_leaf_size) {
-            return BuildNode::Leaf {
-                bounds,
-                first: offset,
-                count: n,
-            };
-        }
-        let leaf_cost = n as f32;
-        // Past MEDIAN_DEPTH, split at the median so the depth stays below STACK_SIZE.
-        let split = if depth < MEDIAN_DEPTH {
-            self.find_split(indices, &bounds, &cbounds)
-        } else {
-            None
-        };
-        let mid = match split {
-            Some((axis, pos, cost))
-                if cost < leaf_cost
-                    || n > self.settings.max_leaf_size
-                    || !self.settings.cost_termination =>
-            {
-                // Partition by the chosen bin boundary.
-                let mut mid = partition(indices, |i| self.centroids[i as usize][axis] < pos);
-                if mid == 0 || mid == n {
-                    mid = n / 2;
-                }
-                mid
-            }
-            Some(_) => {
-                return BuildNode::Leaf {
-                    bounds,
-                    first: offset,
-                    count: n,
-                }
-            }
-            None if n <= self.settings.max_leaf_size => {
-                return BuildNode::Leaf {
-                    bounds,
-                    first: offset,
-                    count: n,
-                };
-            }
-            // All centroids coincide (or the tree is too deep): split at the median.
-            None => {
-                if depth >= MEDIAN_DEPTH {
-                    let axis = cbounds.max_extent();
-                    indices.select_nth_unstable_by(n / 2, |&a, &b| {
-                        self.centroids[a as usize][axis]
-                            .total_cmp(&self.centroids[b as usize][axis])
-                    });
-                }
-                n / 2
-            }
-        };
-        let (left, right) = indices.split_at_mut(mid);
-        let (l, r) = if n > PARALLEL_THRESHOLD {
-            rayon::join(
-                || self.build(left, offset, depth + 1),
-                || self.build(right, offset + mid, depth + 1),
-            )
-        } else {
-            (
-                self.build(left, offset, depth + 1),
-                self.build(right, offset + mid, depth + 1),
-            )
-        };
-        BuildNode::Inner {
-            bounds,
-            children: Box::new([l, r]),
-        }
-    }
-
-    /// The best binned SAH split: (axis, split position, cost relative to a leaf).
-    fn find_split(
-        &self,
-        indices: &[u32],
-        bounds: &Bounds3,
-        cbounds: &Bounds3,
-    ) -> Option<(usize, f32, f32)> {
-        let nb = self.settings.bins;
-        let mut best: Option<(usize, f32, f32)> = None;
-        let area = bounds.surface_area().max(f32::MIN_POSITIVE);
-        let extent = cbounds.diagonal();
-        for axis in 0..3 {
-            if extent[axis] <= 0.0 {
-                continue;
-            }
-            let lo = cbounds.min[axis];
-            let scale = nb as f32 / extent[axis];
-            let mut bins = vec![
-                Bin {
-                    bounds: Bounds3::EMPTY,
-                    count: 0
-                };
-                nb
-            ];
-            for &i in indices {
-                let b = (((self.centroids[i as usize][axis] - lo) * scale) as usize).min(nb - 1);
-                bins[b].count += 1;
-                bins[b].bounds = bins[b].bounds.union(&self.boxes[i as usize]);
-            }
-            // Sweep from the right, then from the left.
-            let mut right_area = vec![0.0f32; nb];
-            let mut right_count = vec![0usize; nb];
-            let (mut acc, mut cnt) = (Bounds3::EMPTY, 0);
-            for b in (1..nb).rev() {
-                acc = acc.union(&bins[b].bounds);
-                cnt += bins[b].count;
-                right_area[b] = acc.surface_area();
-                right_count[b] = cnt;
-            }
-            let (mut acc, mut cnt) = (Bounds3::EMPTY, 0);
-            for b in 0..nb - 1 {
-                acc = acc.union(&bins[b].bounds);
-                cnt += bins[b].count;
-                if cnt == 0 || right_count[b + 1] == 0 {
-                    continue;
-                }
-                let cost = self.settings.traversal_cost
-                    + (acc.surface_area() * cnt as f32
-                        + right_area[b + 1] * right_count[b + 1] as f32)
-                        / area;
-                if best.is_none_or(|(_, _, c)| cost < c) {
-                    best = Some((axis, lo + (b + 1) as f32 / scale, cost));
-                }
-            }
-        }
-        best
-    }
-}
-
-/// In-place partition; returns the number of elements for which `pred` holds.
-fn partition(v: &mut [u32], pred: impl Fn(u32) -> bool) -> usize {
-    let mut first = 0;
-    for i in 0..v.len() {
-        if pred(v[i]) {
-            v.swap(first, i);
-            first += 1;
-        }
-    }
-    first
-}
+pub(super) const MEDIAN_DEPTH: usize = 96;
 
 impl Bvh {
     /// Builds a BVH over the given boxes. Boxes must be finite; empty boxes are allowed
     /// (they are never hit).
     pub fn build(boxes: &[Bounds3], settings: &BuildSettings) -> Bvh {
         let start = Instant::now();
-        let centroids: Vec<Vec3> = boxes
-            .iter()
-            .map(|b| if b.is_empty() { Vec3::ZERO } else { b.center() })
-            .collect();
-        let mut prim_indices: Vec<u32> = (0..boxes.len() as u32).collect();
-        let mut nodes = Vec::new();
-        if !boxes.is_empty() {
-            let builder = Builder {
-                boxes,
-                centroids: &centroids,
-                settings: *settings,
-            };
-            let root = builder.build(&mut prim_indices, 0, 0);
-            nodes.reserve(2 * boxes.len());
-            nodes.push(placeholder());
-            flatten(&root, 0, &mut nodes);
-        } else {
-            nodes.push(BvhNode {
+        let (nodes, prim_indices, max_depth) = if boxes.is_empty() {
+            let empty = BvhNode {
                 min: [f32::INFINITY; 3],
                 max: [f32::NEG_INFINITY; 3],
                 left_or_first: 0,
                 count: 0,
-            });
-        }
+            };
+            (vec![empty], Vec::new(), 1)
+        } else {
+            super::bvh_build::build(boxes, settings)
+        };
         let mut bvh = Bvh {
             nodes,
             prim_indices,
             stats: BvhStats::default(),
         };
-        bvh.stats = bvh.compute_stats(start.elapsed().as_secs_f64());
+        bvh.stats = bvh.compute_stats(start.elapsed().as_secs_f64(), max_depth);
         bvh
     }
 
-    fn compute_stats(&self, build_seconds: f64) -> BvhStats {
-        let root_area = self.nodes[0].bounds().surface_area().max(f32::MIN_POSITIVE);
-        let mut sah = 0.0;
-        let mut leaves = 0;
-        let mut max_depth = 0;
-        let mut stack = vec![(0usize, 1usize)];
-        while let Some((i, depth)) = stack.pop() {
-            let n = &self.nodes[i];
-            max_depth = max_depth.max(depth);
-            let a = n.bounds().surface_area() / root_area;
-            if n.is_leaf() || self.prim_indices.is_empty() {
-                leaves += 1;
-                sah += a * n.count as f32;
-            } else {
-                sah += a;
-                stack.push((n.left_or_first as usize, depth + 1));
-                stack.push((n.left_or_first as usize + 1, depth + 1));
-            }
-        }
+    /// Statistics of a built tree of depth `max_depth`, in one pass over the nodes.
+    fn compute_stats(&self, build_seconds: f64, max_depth: usize) -> BvhStats {
+        let root_area = self.nodes[0].bounds().surface_area().max(f32::MIN_POSITIVE) as f64;
+        // Fixed chunks, summed in order: the same total for any thread count.
+        let partial: Vec<(f64, usize)> = self
+            .nodes
+            .par_chunks(1 << 16)
+            .map(|chunk| {
+                let mut sah = 0.0f64;
+                let mut leaves = 0;
+                for n in chunk {
+                    let a = n.bounds().surface_area() as f64;
+                    if n.is_leaf() || self.prim_indices.is_empty() {
+                        leaves += 1;
+                        sah += a * n.count as f64;
+                    } else {
+                        sah += a;
+                    }
+                }
+                (sah, leaves)
+            })
+            .collect();
+        let sah: f64 = partial.iter().map(|p| p.0).sum();
         BvhStats {
             build_seconds,
             nodes: self.nodes.len(),
-            leaves,
+            leaves: partial.iter().map(|p| p.1).sum(),
             bytes: self.memory_bytes(),
-            sah_cost: sah,
+            sah_cost: (sah / root_area) as f32,
             max_depth,
         }
     }
@@ -660,43 +489,6 @@ impl Bvh {
     }
 }
 
-fn placeholder() -> BvhNode {
-    BvhNode {
-        min: [0.0; 3],
-        left_or_first: 0,
-        max: [0.0; 3],
-        count: 0,
-    }
-}
-
-/// Writes `node` at `index` and its children (as adjacent pairs) after the current end.
-fn flatten(node: &BuildNode, index: usize, nodes: &mut Vec<BvhNode>) {
-    let b = node.bounds();
-    match node {
-        BuildNode::Leaf { first, count, .. } => {
-            nodes[index] = BvhNode {
-                min: b.min.to_array(),
-                left_or_first: *first as u32,
-                max: b.max.to_array(),
-                count: *count as u32,
-            };
-        }
-        BuildNode::Inner { children, .. } => {
-            let left = nodes.len();
-            nodes.push(placeholder());
-            nodes.push(placeholder());
-            nodes[index] = BvhNode {
-                min: b.min.to_array(),
-                left_or_first: left as u32,
-                max: b.max.to_array(),
-                count: 0,
-            };
-            flatten(&children[0], left, nodes);
-            flatten(&children[1], left + 1, nodes);
-        }
-    }
-}
-
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
@@ -708,6 +500,36 @@ pub(crate) mod tests {
     fn matches_the_list_on_every_test_scene() {
         crate::accel::testing::check_kind_on_all_scenes(crate::accel::AccelKind::Bvh2);
         crate::accel::testing::check_kind_on_all_scenes(crate::accel::AccelKind::BvhCourse);
+        crate::accel::testing::check_kind_on_all_scenes(crate::accel::AccelKind::Bvh2High);
+        crate::accel::testing::check_kind_on_all_scenes(crate::accel::AccelKind::Bvh4High);
+        crate::accel::testing::check_kind_on_all_scenes(crate::accel::AccelKind::Bvh8High);
+    }
+
+    /// The high-quality preset: a valid tree, the same for any thread count, and a lower
+    /// SAH cost than the default's.
+    #[test]
+    fn high_quality_preset() {
+        let boxes = random_boxes(40_000, 21);
+        let build = |threads, settings: &BuildSettings| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| Bvh::build(&boxes, settings))
+        };
+        let high = build(1, &BuildSettings::HIGH);
+        high.validate(&boxes).unwrap();
+        let again = build(2, &BuildSettings::HIGH);
+        assert_eq!(high.nodes, again.nodes);
+        assert_eq!(high.prim_indices, again.prim_indices);
+        let default = build(2, &BuildSettings::default());
+        assert!(
+            high.stats.sah_cost < default.stats.sah_cost,
+            "{} {}",
+            high.stats.sah_cost,
+            default.stats.sah_cost
+        );
+        assert!(high.stats.max_depth < STACK_SIZE);
     }
     use crate::sampling::Pcg32;
 
@@ -799,6 +621,45 @@ pub(crate) mod tests {
         let none = Bvh::build(&[], &BuildSettings::default());
         let mut s = RayStats::default();
         assert!(!none.intersect(&Ray::new(Vec3::ZERO, Vec3::X), &mut s, |_, _| true));
+    }
+
+    /// The same tree for any thread count, on an input large enough for the parallel
+    /// paths (parallel binning, tasks), with empty boxes among the others.
+    #[test]
+    fn same_tree_for_any_thread_count() {
+        let mut boxes = random_boxes(150_000, 11);
+        for i in (0..boxes.len()).step_by(9973) {
+            boxes[i] = Bounds3::EMPTY;
+        }
+        for settings in [BuildSettings::default(), BuildSettings::COURSE] {
+            let build = |threads| {
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap()
+                    .install(|| Bvh::build(&boxes, &settings))
+            };
+            let one = build(1);
+            one.validate(&boxes).unwrap();
+            for threads in [2, 3] {
+                let other = build(threads);
+                assert_eq!(one.nodes, other.nodes, "{threads} threads");
+                assert_eq!(one.prim_indices, other.prim_indices, "{threads} threads");
+                assert_eq!(one.stats.sah_cost, other.stats.sah_cost);
+            }
+        }
+    }
+
+    /// Every primitive index survives the build's packing of indices into the spare
+    /// lanes, including ones above 2^16.
+    #[test]
+    fn leaves_list_every_primitive_once() {
+        let boxes = random_boxes(70_000, 5);
+        let bvh = Bvh::build(&boxes, &BuildSettings::default());
+        let mut seen = bvh.prim_indices.clone();
+        seen.sort_unstable();
+        assert!(seen.iter().copied().eq(0..boxes.len() as u32));
+        bvh.validate(&boxes).unwrap();
     }
 
     #[test]

@@ -9,6 +9,7 @@
 pub mod bsp;
 pub mod bvh;
 mod bvh8;
+mod bvh_build;
 mod collapse;
 mod cover;
 pub mod grid;
@@ -55,10 +56,16 @@ pub enum AccelKind {
     BvhCourse,
     /// The binary SAH tree collapsed into 4-wide nodes tested with SIMD.
     Bvh4,
+    /// `Bvh2` built with `BuildSettings::HIGH` (slower build, lower SAH cost).
+    Bvh2High,
+    /// `Bvh4` collapsed from a `BuildSettings::HIGH` tree.
+    Bvh4High,
     /// The binary SAH tree collapsed into 8-wide nodes tested with AVX2: the fastest,
     /// and the default.
     #[default]
     Bvh8,
+    /// `Bvh8` collapsed from a `BuildSettings::HIGH` tree.
+    Bvh8High,
     /// Uniform grid traversed by 3D-DDA, with per-ray mailboxing.
     Grid,
     /// Octree split at node centres, traversed front to back.
@@ -76,6 +83,9 @@ impl AccelKind {
         "bvh",
         "bvh4",
         "bvh8",
+        "bvh2-hq",
+        "bvh4-hq",
+        "bvh8-hq",
         "bvh-course",
         "grid",
         "octree",
@@ -90,6 +100,9 @@ impl AccelKind {
             "bvh-course" => Some(AccelKind::BvhCourse),
             "bvh4" => Some(AccelKind::Bvh4),
             "bvh8" => Some(AccelKind::Bvh8),
+            "bvh2-hq" => Some(AccelKind::Bvh2High),
+            "bvh4-hq" => Some(AccelKind::Bvh4High),
+            "bvh8-hq" => Some(AccelKind::Bvh8High),
             "grid" => Some(AccelKind::Grid),
             "octree" => Some(AccelKind::Octree),
             "kdtree" => Some(AccelKind::KdTree),
@@ -121,6 +134,9 @@ impl Accel {
             AccelKind::BvhCourse => Accel::Bvh(Bvh::build(bounds, &bvh::BuildSettings::COURSE)),
             AccelKind::Bvh4 => Accel::Bvh4(Bvh4::build(bounds, &bvh::BuildSettings::default())),
             AccelKind::Bvh8 => Accel::Bvh8(Bvh8::build(bounds, &bvh::BuildSettings::default())),
+            AccelKind::Bvh2High => Accel::Bvh(Bvh::build(bounds, &bvh::BuildSettings::HIGH)),
+            AccelKind::Bvh4High => Accel::Bvh4(Bvh4::build(bounds, &bvh::BuildSettings::HIGH)),
+            AccelKind::Bvh8High => Accel::Bvh8(Bvh8::build(bounds, &bvh::BuildSettings::HIGH)),
             AccelKind::Grid => Accel::Grid(Grid::build(bounds)),
             AccelKind::Octree => Accel::Octree(Octree::build(bounds)),
             AccelKind::KdTree => Accel::KdTree(KdTree::build(bounds)),

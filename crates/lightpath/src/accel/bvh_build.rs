@@ -1,0 +1,1083 @@
+//! The binned SAH builder behind [`Bvh::build`](super::Bvh::build).
+//!
+//! - **Primitive references.** The build works on a copy of the boxes as 32-byte records
+//!   ([`PrimRef`]: `min` and `max` as SIMD `Vec4`, the primitive index in the spare lanes),
+//!   so binning and partitioning read memory sequentially instead of gathering boxes and
+//!   centroids through an index array. Centroids are kept doubled (`min + max`): that
+//!   saves a multiply and bins exactly as the halved centroid would.
+//! - **Binning.** One pass over a range puts every primitive into its bin on all three
+//!   axes at once (one subtract, multiply and clamp for the three bin indices); a sweep
+//!   over the bins from the right and then from the left evaluates every bin boundary,
+//!   the three axes at once in the lanes of a `Vec4`. Ranges above [`PAR_BIN_SIZE`] are
+//!   binned in parallel, in fixed chunks whose bins are merged (exact: a minimum, a
+//!   maximum and a count).
+//! - **Small ranges** (at most `BuildSettings::sweep_size` primitives, most nodes of a
+//!   tree) skip the bins: their centroids are sorted along each axis and every split
+//!   between neighbours is evaluated, which costs less than clearing and sweeping the
+//!   bins and finds splits at least as good.
+//! - **Partition.** In place, from both ends, by the same bin computation as the binning
+//!   (so the two sides have exactly the counts the SAH evaluated), accumulating both
+//!   children's boxes and centroid boxes on the way: no node ever makes a pass of its own
+//!   just to find its box.
+//! - **Tasks.** Ranges above [`TASK_SIZE`] split into two halves built with `rayon::join`;
+//!   a range at or below it is one task that writes its subtree straight into its own
+//!   node array, in the final layout (depth first, siblings adjacent). The arrays are
+//!   joined once at the end, below the few top-level nodes.
+//!
+//! - **Reinsertion** (`BuildSettings::reinsertion_passes`, the `HIGH` preset): after the
+//!   build, every node, largest first, is taken out and put back where it adds the least
+//!   SAH cost; then the nodes are laid out depth first again.
+//!
+//! Every decision depends on the data and on fixed sizes only, never on the number of
+//! threads or on timing, so the tree is the same for any thread count.
+
+use super::bvh::{BuildSettings, BvhNode, MEDIAN_DEPTH, STACK_SIZE};
+use crate::math::Bounds3;
+use glam::{BVec4A, Mat4, Vec3, Vec4};
+use rayon::prelude::*;
+use std::cmp::Reverse;
+
+/// Ranges above this many primitives split into two halves built in parallel; a range
+/// at or below it is built by one task.
+const TASK_SIZE: usize = 4096;
+/// Ranges of at least this many primitives are binned into two sets of bins.
+const INTERLEAVE_SIZE: usize = 128;
+/// Ranges above this many primitives are binned in parallel ...
+const PAR_BIN_SIZE: usize = 1 << 16;
+/// ... in chunks of this many.
+const BIN_CHUNK: usize = 1 << 14;
+
+/// A primitive's box; the w lanes hold its index, the low 16 bits in `min.w` and the high
+/// 16 in `max.w`, as small whole numbers: arithmetic on the spare lane then never meets a
+/// subnormal (which costs a microcode assist per instruction) or overflows.
+#[derive(Clone, Copy)]
+#[repr(C)]
+struct PrimRef {
+    min: Vec4,
+    max: Vec4,
+}
+
+impl PrimRef {
+    #[inline]
+    fn new(b: &Bounds3, index: u32) -> PrimRef {
+        PrimRef {
+            min: b.min.extend((index & 0xffff) as f32),
+            max: b.max.extend((index >> 16) as f32),
+        }
+    }
+
+    #[inline]
+    fn index(&self) -> u32 {
+        self.min.w as u32 | (self.max.w as u32) << 16
+    }
+
+    /// Half the box's surface area (as `Aabb::half_area`).
+    #[inline(always)]
+    fn half_area(&self) -> f32 {
+        let d = self.max - self.min;
+        d.x * d.y + d.y * d.z + d.z * d.x
+    }
+
+    /// Twice the centroid (the w lane means nothing).
+    #[inline(always)]
+    fn centroid2(&self) -> Vec4 {
+        self.min + self.max
+    }
+}
+
+/// A box as two `Vec4` (the w lanes mean nothing).
+#[derive(Clone, Copy)]
+struct Aabb {
+    min: Vec4,
+    max: Vec4,
+}
+
+impl Aabb {
+    const EMPTY: Aabb = Aabb {
+        min: Vec4::splat(f32::INFINITY),
+        max: Vec4::splat(f32::NEG_INFINITY),
+    };
+
+    #[inline(always)]
+    fn grow(&mut self, p: &PrimRef) {
+        self.min = self.min.min(p.min);
+        self.max = self.max.max(p.max);
+    }
+
+    #[inline(always)]
+    fn grow_point(&mut self, c: Vec4) {
+        self.min = self.min.min(c);
+        self.max = self.max.max(c);
+    }
+
+    #[inline(always)]
+    fn union(&self, o: &Aabb) -> Aabb {
+        Aabb {
+            min: self.min.min(o.min),
+            max: self.max.max(o.max),
+        }
+    }
+
+    /// Half the surface area (the same expression as `Bounds3::surface_area`).
+    #[inline(always)]
+    fn half_area(&self) -> f32 {
+        let d = self.max - self.min;
+        d.x * d.y + d.y * d.z + d.z * d.x
+    }
+
+    fn min3(&self) -> [f32; 3] {
+        self.min.truncate().to_array()
+    }
+
+    fn max3(&self) -> [f32; 3] {
+        self.max.truncate().to_array()
+    }
+}
+
+/// A range's box and the box of its (doubled) centroids.
+#[derive(Clone, Copy)]
+struct Range {
+    bounds: Aabb,
+    cbounds: Aabb,
+}
+
+impl Range {
+    const EMPTY: Range = Range {
+        bounds: Aabb::EMPTY,
+        cbounds: Aabb::EMPTY,
+    };
+
+    #[inline(always)]
+    fn grow(&mut self, p: &PrimRef) {
+        self.bounds.grow(p);
+        self.cbounds.grow_point(p.centroid2());
+    }
+
+    fn merge(mut self, o: Range) -> Range {
+        self.bounds = self.bounds.union(&o.bounds);
+        self.cbounds = self.cbounds.union(&o.cbounds);
+        self
+    }
+
+    fn of(prims: &[PrimRef]) -> Range {
+        let mut r = Range::EMPTY;
+        for p in prims {
+            r.grow(p);
+        }
+        r
+    }
+
+    /// In parallel above [`PAR_BIN_SIZE`] (exact, so the same result).
+    fn of_par(prims: &[PrimRef]) -> Range {
+        if prims.len() > PAR_BIN_SIZE {
+            prims
+                .par_chunks(BIN_CHUNK)
+                .map(Range::of)
+                .reduce(|| Range::EMPTY, Range::merge)
+        } else {
+            Range::of(prims)
+        }
+    }
+}
+
+/// Most bins per axis.
+pub(super) const MAX_BINS: usize = 256;
+
+/// Adding 1.5·2²³ to a float in [0, 2²²) rounds it to an integer (to nearest, ties to
+/// even) that lands in the low bits of the sum's mantissa: a float-to-int conversion
+/// without the saturation checks of `as`.
+const ROUND_MAGIC: f32 = 12_582_912.0;
+
+/// Maps doubled centroids to bins: bin = round((c − lo)·scale − ½) (which is ⌊(c −
+/// lo)·scale⌋ except where that is a whole number), clamped to the bins. An axis along
+/// which the centroids do not spread has scale 0 (everything in bin 0) and is not
+/// evaluated. Binning and partitioning both go through [`Binner::position`], so a
+/// primitive lands on the side of a split that its bin was counted on.
+#[derive(Clone, Copy)]
+struct Binner {
+    lo: Vec4,
+    scale: Vec4,
+    last: Vec4,
+    valid: [bool; 3],
+}
+
+impl Binner {
+    fn new(cbounds: &Aabb, bins: usize) -> Binner {
+        let extent = cbounds.max - cbounds.min;
+        let mut scale = [0.0f32; 4];
+        let mut valid = [false; 3];
+        for a in 0..3 {
+            if extent[a] > 0.0 {
+                let s = bins as f32 / extent[a];
+                if s.is_finite() {
+                    scale[a] = s;
+                    valid[a] = true;
+                }
+            }
+        }
+        Binner {
+            lo: cbounds.min.truncate().extend(0.0),
+            scale: Vec4::from_array(scale),
+            last: Vec4::splat((bins - 1) as f32),
+            valid,
+        }
+    }
+
+    /// The bins on the three axes, as the bits of the lanes x, y, z (see
+    /// [`ROUND_MAGIC`]).
+    #[inline(always)]
+    fn position(&self, p: &PrimRef) -> Vec4 {
+        ((p.centroid2() - self.lo) * self.scale - Vec4::splat(0.5))
+            .max(Vec4::ZERO)
+            .min(self.last)
+            + Vec4::splat(ROUND_MAGIC)
+    }
+
+    /// The bins of a primitive on the three axes.
+    #[inline(always)]
+    fn bins(&self, p: &PrimRef) -> [usize; 3] {
+        let v = self.position(p);
+        [bin_of(v.x), bin_of(v.y), bin_of(v.z)]
+    }
+
+    /// The bin of a primitive on axis `AXIS`.
+    #[inline(always)]
+    fn bin<const AXIS: usize>(&self, p: &PrimRef) -> usize {
+        bin_of(self.position(p)[AXIS])
+    }
+}
+
+#[inline(always)]
+fn bin_of(v: f32) -> usize {
+    (v.to_bits() & (MAX_BINS as u32 - 1)) as usize
+}
+
+/// Bins: per bin, the boxes and counts of the three axes side by side, so that the sweep
+/// evaluates the three axes at once in the lanes of a `Vec4`. Fixed arrays of
+/// [`MAX_BINS`] (indices need no bounds checks); only the first `bins` are used.
+struct Bins {
+    boxes: Box<[[Aabb; 3]; MAX_BINS]>,
+    counts: Box<[[u32; 4]; MAX_BINS]>,
+    bins: usize,
+}
+
+impl Bins {
+    fn new(bins: usize) -> Bins {
+        Bins {
+            boxes: Box::new([[Aabb::EMPTY; 3]; MAX_BINS]),
+            counts: Box::new([[0; 4]; MAX_BINS]),
+            bins,
+        }
+    }
+
+    fn clear(&mut self) {
+        self.boxes[..self.bins].fill([Aabb::EMPTY; 3]);
+        self.counts[..self.bins].fill([0; 4]);
+    }
+
+    #[inline]
+    fn add(&mut self, prims: &[PrimRef], binner: &Binner) {
+        for p in prims {
+            let b = binner.bins(p);
+            for (axis, &bin) in b.iter().enumerate() {
+                self.boxes[bin][axis].grow(p);
+                self.counts[bin][axis] += 1;
+            }
+        }
+    }
+
+    /// Bins the primitives alternately into `self` and `other`, then merges `other` in:
+    /// two independent chains of read-modify-writes where neighbouring primitives
+    /// (often in the same bins) would otherwise wait for each other's stores.
+    #[inline]
+    fn add_interleaved(&mut self, other: &mut Bins, prims: &[PrimRef], binner: &Binner) {
+        let pairs = prims.chunks_exact(2);
+        let rest = pairs.remainder();
+        for pair in pairs {
+            let (p, q) = (&pair[0], &pair[1]);
+            let (bp, bq) = (binner.bins(p), binner.bins(q));
+            for axis in 0..3 {
+                self.boxes[bp[axis]][axis].grow(p);
+                self.counts[bp[axis]][axis] += 1;
+                other.boxes[bq[axis]][axis].grow(q);
+                other.counts[bq[axis]][axis] += 1;
+            }
+        }
+        self.add(rest, binner);
+        self.merge_from(other);
+    }
+
+    fn merge_from(&mut self, o: &Bins) {
+        for (a, b) in self.boxes.iter_mut().zip(o.boxes.iter()).take(self.bins) {
+            for axis in 0..3 {
+                a[axis] = a[axis].union(&b[axis]);
+            }
+        }
+        for (a, b) in self.counts.iter_mut().zip(o.counts.iter()).take(self.bins) {
+            for axis in 0..3 {
+                a[axis] += b[axis];
+            }
+        }
+    }
+
+    fn merge(mut self, o: Bins) -> Bins {
+        self.merge_from(&o);
+        self
+    }
+}
+
+/// Half the surface areas of three boxes, in lanes x, y, z.
+#[inline(always)]
+fn half_areas(b: &[Aabb; 3]) -> Vec4 {
+    let m = Mat4::from_cols(
+        b[0].max - b[0].min,
+        b[1].max - b[1].min,
+        b[2].max - b[2].min,
+        Vec4::ZERO,
+    )
+    .transpose();
+    let (x, y, z) = (m.x_axis, m.y_axis, m.z_axis);
+    // Lane by lane the same expression as `Aabb::half_area`.
+    x * y + y * z + z * x
+}
+
+#[inline(always)]
+fn counts4(c: &[u32; 4]) -> Vec4 {
+    Vec4::new(c[0] as f32, c[1] as f32, c[2] as f32, c[3] as f32)
+}
+
+/// Reused buffers of one task.
+struct Scratch {
+    bins: Bins,
+    bins2: Bins,
+    /// Area-weighted counts and counts of everything right of each bin boundary (lanes:
+    /// axes).
+    right: Vec<(Vec4, Vec4)>,
+    /// The sweep's centroid order per axis: sort keys with the position in the range in
+    /// the low 32 bits.
+    order: [Vec<u64>; 3],
+    /// The sweep's area-weighted counts right of each position (lanes: axes).
+    sweep_right: Vec<Vec4>,
+    tmp: Vec<PrimRef>,
+}
+
+impl Scratch {
+    fn new(bins: usize) -> Scratch {
+        Scratch {
+            bins: Bins::new(bins),
+            bins2: Bins::new(bins),
+            right: vec![(Vec4::ZERO, Vec4::ZERO); bins],
+            order: Default::default(),
+            sweep_right: Vec::new(),
+            tmp: Vec::new(),
+        }
+    }
+
+    /// Puts a range in the sweep's order along `axis` and splits it after `k`.
+    fn apply_order(&mut self, prims: &mut [PrimRef], axis: usize, k: usize) -> Split {
+        self.tmp.clear();
+        self.tmp.extend_from_slice(prims);
+        for (p, &key) in prims.iter_mut().zip(&self.order[axis]) {
+            *p = self.tmp[key as u32 as usize];
+        }
+        (k, Range::of(&prims[..k]), Range::of(&prims[k..]))
+    }
+}
+
+/// How to split a range.
+enum Plan {
+    /// Left: bins up to and including the given one on an axis.
+    Binned(Binner, usize, usize),
+    /// Left: the first k in centroid order along an axis.
+    Sorted(usize, usize),
+    /// Two primitives, one on each side; whether to swap them first.
+    Pair(bool),
+}
+
+/// What one task builds into.
+struct Task {
+    nodes: Vec<BvhNode>,
+    scratch: Scratch,
+}
+
+/// A split: the number of primitives on the left and both sides' ranges.
+type Split = (usize, Range, Range);
+
+/// The top of the tree above the tasks.
+enum Top {
+    Inner(Aabb, Box<[Top; 2]>),
+    /// A subtree with its root at index 0 and its nodes' child indices local to it.
+    Sub(Vec<BvhNode>),
+}
+
+struct Builder {
+    settings: BuildSettings,
+    bins: usize,
+}
+
+fn leaf(bounds: &Aabb, first: usize, count: usize) -> BvhNode {
+    BvhNode {
+        min: bounds.min3(),
+        left_or_first: first as u32,
+        max: bounds.max3(),
+        count: count as u32,
+    }
+}
+
+fn inner(bounds: &Aabb, left: usize) -> BvhNode {
+    BvhNode {
+        min: bounds.min3(),
+        left_or_first: left as u32,
+        max: bounds.max3(),
+        count: 0,
+    }
+}
+
+const PLACEHOLDER: BvhNode = BvhNode {
+    min: [0.0; 3],
+    left_or_first: 0,
+    max: [0.0; 3],
+    count: 0,
+};
+
+/// In-place partition from both ends; returns the size of the left side and both sides'
+/// ranges.
+#[inline]
+fn partition(prims: &mut [PrimRef], is_left: impl Fn(&PrimRef) -> bool) -> Split {
+    let mut l = Range::EMPTY;
+    let mut r = Range::EMPTY;
+    let (mut i, mut j) = (0, prims.len());
+    loop {
+        while i < j && is_left(&prims[i]) {
+            l.grow(&prims[i]);
+            i += 1;
+        }
+        while i < j && !is_left(&prims[j - 1]) {
+            r.grow(&prims[j - 1]);
+            j -= 1;
+        }
+        if i == j {
+            break;
+        }
+        // prims[i] belongs right and prims[j - 1] left.
+        prims.swap(i, j - 1);
+        l.grow(&prims[i]);
+        r.grow(&prims[j - 1]);
+        i += 1;
+        j -= 1;
+    }
+    (i, l, r)
+}
+
+impl Builder {
+    /// Leaf (`None`) or split of a range, with the old builder's rules: SAH termination
+    /// (when enabled), leaves of at most `max_leaf_size`, a median split where all
+    /// centroids coincide or past `MEDIAN_DEPTH`.
+    fn decide(
+        &self,
+        prims: &mut [PrimRef],
+        range: &Range,
+        depth: usize,
+        scratch: &mut Scratch,
+    ) -> Option<Split> {
+        let n = prims.len();
+        let s = &self.settings;
+        if n == 1 || (!s.cost_termination && n <= s.max_leaf_size) {
+            return None;
+        }
+        if depth >= MEDIAN_DEPTH {
+            if n <= s.max_leaf_size {
+                return None;
+            }
+            let d = range.cbounds.max - range.cbounds.min;
+            let axis = if d.x > d.y && d.x > d.z {
+                0
+            } else if d.y > d.z {
+                1
+            } else {
+                2
+            };
+            prims.select_nth_unstable_by(n / 2, |a, b| {
+                a.centroid2()[axis].total_cmp(&b.centroid2()[axis])
+            });
+            return Some(median(prims));
+        }
+        let found = if n <= s.sweep_size {
+            self.sweep_split(prims, range, scratch)
+        } else {
+            self.binned_split(prims, range, scratch)
+        };
+        match found {
+            Some((plan, cost)) if cost < n as f32 || n > s.max_leaf_size || !s.cost_termination => {
+                Some(match plan {
+                    Plan::Binned(binner, 0, bin) => partition(prims, |p| binner.bin::<0>(p) <= bin),
+                    Plan::Binned(binner, 1, bin) => partition(prims, |p| binner.bin::<1>(p) <= bin),
+                    Plan::Binned(binner, _, bin) => partition(prims, |p| binner.bin::<2>(p) <= bin),
+                    Plan::Sorted(axis, k) => scratch.apply_order(prims, axis, k),
+                    Plan::Pair(swap) => {
+                        if swap {
+                            prims.swap(0, 1);
+                        }
+                        (1, Range::of(&prims[..1]), Range::of(&prims[1..]))
+                    }
+                })
+            }
+            Some(_) => None,
+            None if n <= s.max_leaf_size => None,
+            // All centroids coincide: any split is as good.
+            None => Some(median(prims)),
+        }
+    }
+
+    /// The best binned SAH split and its cost relative to a leaf (SAH with traversal
+    /// cost `traversal_cost` and primitive cost 1).
+    fn binned_split(
+        &self,
+        prims: &[PrimRef],
+        range: &Range,
+        scratch: &mut Scratch,
+    ) -> Option<(Plan, f32)> {
+        let nb = self.bins;
+        let binner = Binner::new(&range.cbounds, nb);
+        if binner.valid == [false; 3] {
+            return None;
+        }
+        let par;
+        let bins = if prims.len() > PAR_BIN_SIZE {
+            par = prims
+                .par_chunks(BIN_CHUNK)
+                .map(|c| {
+                    let mut b = Bins::new(nb);
+                    b.add_interleaved(&mut Bins::new(nb), c, &binner);
+                    b
+                })
+                .reduce_with(Bins::merge)
+                .expect("non-empty");
+            &par
+        } else {
+            scratch.bins.clear();
+            if prims.len() >= INTERLEAVE_SIZE {
+                scratch.bins2.clear();
+                scratch
+                    .bins
+                    .add_interleaved(&mut scratch.bins2, prims, &binner);
+            } else {
+                scratch.bins.add(prims, &binner);
+            }
+            &scratch.bins
+        };
+        // Minimise area-weighted counts (the parent's area and the traversal cost are
+        // the same for every candidate), for the three axes at once.
+        let right = &mut scratch.right;
+        let (mut acc, mut cnt) = ([Aabb::EMPTY; 3], [0u32; 4]);
+        for b in (1..nb).rev() {
+            for axis in 0..3 {
+                acc[axis] = acc[axis].union(&bins.boxes[b][axis]);
+                cnt[axis] += bins.counts[b][axis];
+            }
+            let c = counts4(&cnt);
+            right[b] = (half_areas(&acc) * c, c);
+        }
+        let valid = Vec4::new(
+            f32::from(u8::from(binner.valid[0])),
+            f32::from(u8::from(binner.valid[1])),
+            f32::from(u8::from(binner.valid[2])),
+            0.0,
+        )
+        .cmpgt(Vec4::ZERO);
+        let mut best = Vec4::INFINITY;
+        let mut best_bin = Vec4::ZERO;
+        let (mut acc, mut cnt) = ([Aabb::EMPTY; 3], [0u32; 4]);
+        for b in 0..nb - 1 {
+            for axis in 0..3 {
+                acc[axis] = acc[axis].union(&bins.boxes[b][axis]);
+                cnt[axis] += bins.counts[b][axis];
+            }
+            let c = counts4(&cnt);
+            let (rcost, rc) = right[b + 1];
+            let cost = half_areas(&acc) * c + rcost;
+            // Strictly lower: the first of equal candidates along an axis wins.
+            let better = valid & c.cmpgt(Vec4::ZERO) & rc.cmpgt(Vec4::ZERO) & cost.cmplt(best);
+            best = Vec4::select(better, cost, best);
+            best_bin = Vec4::select(better, Vec4::splat(b as f32), best_bin);
+        }
+        let axis = best_axis(best);
+        let c = best[axis];
+        (c < f32::INFINITY).then(|| {
+            (
+                Plan::Binned(binner, axis, best_bin[axis] as usize),
+                self.cost(c, range),
+            )
+        })
+    }
+
+    /// The SAH cost of a split relative to a leaf, from its area-weighted counts.
+    fn cost(&self, weighted: f32, range: &Range) -> f32 {
+        let area = range.bounds.half_area().max(f32::MIN_POSITIVE);
+        self.settings.traversal_cost + weighted / area
+    }
+
+    /// The best split of a small range between any two neighbours in centroid order (a
+    /// full SAH sweep, of which the binned candidates are a subset), the three axes at
+    /// once in the lanes of a `Vec4`.
+    fn sweep_split(
+        &self,
+        prims: &[PrimRef],
+        range: &Range,
+        scratch: &mut Scratch,
+    ) -> Option<(Plan, f32)> {
+        let n = prims.len();
+        let extent = range.cbounds.max - range.cbounds.min;
+        let valid = extent.cmpgt(Vec4::ZERO) & BVec4A::new(true, true, true, false);
+        if !valid.any() {
+            return None;
+        }
+        if n == 2 {
+            // One candidate, the same on every axis; the sweep would take the first
+            // axis along which the centroids spread and order the two along it.
+            let axis = valid.bitmask().trailing_zeros() as usize;
+            let c = prims[0].half_area() + prims[1].half_area();
+            let swap = prims[1].centroid2()[axis] < prims[0].centroid2()[axis];
+            return Some((Plan::Pair(swap), self.cost(c, range)));
+        }
+        // Sort keys: the centroid's bits, made to order as the floats do, then the
+        // position in the range (ties in range order, so the sort is deterministic).
+        let order = &mut scratch.order;
+        for o in order.iter_mut() {
+            o.clear();
+        }
+        for (i, p) in prims.iter().enumerate() {
+            let c = p.centroid2();
+            for (axis, o) in order.iter_mut().enumerate() {
+                let bits = c[axis].to_bits();
+                let ordered = if bits >> 31 == 0 {
+                    bits | 0x8000_0000
+                } else {
+                    !bits
+                };
+                o.push(u64::from(ordered) << 32 | i as u64);
+            }
+        }
+        for (axis, o) in order.iter_mut().enumerate() {
+            if valid.test(axis) {
+                o.sort_unstable();
+            }
+        }
+        let at = |axis: usize, k: usize| &prims[order[axis][k] as u32 as usize];
+        let right = &mut scratch.sweep_right;
+        right.resize(n, Vec4::ZERO);
+        let mut acc = [Aabb::EMPTY; 3];
+        for k in (1..n).rev() {
+            for (axis, a) in acc.iter_mut().enumerate() {
+                a.grow(at(axis, k));
+            }
+            right[k] = half_areas(&acc) * (n - k) as f32;
+        }
+        let mut best = Vec4::INFINITY;
+        let mut best_k = Vec4::ZERO;
+        let mut acc = [Aabb::EMPTY; 3];
+        for (k, &r) in right.iter().enumerate().skip(1) {
+            for (axis, a) in acc.iter_mut().enumerate() {
+                a.grow(at(axis, k - 1));
+            }
+            let cost = half_areas(&acc) * k as f32 + r;
+            let better = valid & cost.cmplt(best);
+            best = Vec4::select(better, cost, best);
+            best_k = Vec4::select(better, Vec4::splat(k as f32), best_k);
+        }
+        let axis = best_axis(best);
+        let c = best[axis];
+        (c < f32::INFINITY).then(|| {
+            (
+                Plan::Sorted(axis, best_k[axis] as usize),
+                self.cost(c, range),
+            )
+        })
+    }
+
+    /// Builds the subtree of a range into the task's nodes, its root at `at`; returns
+    /// its depth.
+    fn build_seq(
+        &self,
+        prims: &mut [PrimRef],
+        offset: usize,
+        range: &Range,
+        depth: usize,
+        at: usize,
+        task: &mut Task,
+    ) -> usize {
+        match self.decide(prims, range, depth, &mut task.scratch) {
+            None => {
+                task.nodes[at] = leaf(&range.bounds, offset, prims.len());
+                depth
+            }
+            Some((mid, l, r)) => {
+                let left = task.nodes.len();
+                task.nodes.push(PLACEHOLDER);
+                task.nodes.push(PLACEHOLDER);
+                task.nodes[at] = inner(&range.bounds, left);
+                let (a, b) = prims.split_at_mut(mid);
+                let dl = self.build_seq(a, offset, &l, depth + 1, left, task);
+                let dr = self.build_seq(b, offset + mid, &r, depth + 1, left + 1, task);
+                dl.max(dr)
+            }
+        }
+    }
+
+    /// One task: the subtree of a range in its own node array.
+    fn build_task(
+        &self,
+        prims: &mut [PrimRef],
+        offset: usize,
+        range: &Range,
+        depth: usize,
+    ) -> (Vec<BvhNode>, usize) {
+        // A binary tree over n primitives has at most 2n − 1 nodes.
+        let mut task = Task {
+            nodes: Vec::with_capacity(2 * prims.len()),
+            scratch: Scratch::new(self.bins),
+        };
+        task.nodes.push(PLACEHOLDER);
+        let d = self.build_seq(prims, offset, range, depth, 0, &mut task);
+        (task.nodes, d)
+    }
+
+    fn build_top(
+        &self,
+        prims: &mut [PrimRef],
+        offset: usize,
+        range: &Range,
+        depth: usize,
+    ) -> (Top, usize) {
+        if prims.len() <= TASK_SIZE {
+            let (nodes, d) = self.build_task(prims, offset, range, depth);
+            return (Top::Sub(nodes), d);
+        }
+        let mut scratch = Scratch::new(self.bins);
+        match self.decide(prims, range, depth, &mut scratch) {
+            None => (
+                Top::Sub(vec![leaf(&range.bounds, offset, prims.len())]),
+                depth,
+            ),
+            Some((mid, l, r)) => {
+                let (a, b) = prims.split_at_mut(mid);
+                let ((lt, dl), (rt, dr)) = rayon::join(
+                    || self.build_top(a, offset, &l, depth + 1),
+                    || self.build_top(b, offset + mid, &r, depth + 1),
+                );
+                (Top::Inner(range.bounds, Box::new([lt, rt])), dl.max(dr))
+            }
+        }
+    }
+}
+
+/// The axis (lane) of the lowest cost; between equal ones the first.
+fn best_axis(cost: Vec4) -> usize {
+    let mut axis = 0;
+    for a in 1..3 {
+        if cost[a] < cost[axis] {
+            axis = a;
+        }
+    }
+    axis
+}
+
+/// Splits at the middle and measures both halves.
+fn median(prims: &[PrimRef]) -> Split {
+    let mid = prims.len() / 2;
+    (mid, Range::of(&prims[..mid]), Range::of(&prims[mid..]))
+}
+
+/// A balanced tree over primitives with empty boxes (which no ray can hit), in leaves of
+/// at most `max_leaf` primitives; returns its depth.
+fn build_empty(
+    count: usize,
+    offset: usize,
+    max_leaf: usize,
+    depth: usize,
+    nodes: &mut Vec<BvhNode>,
+    at: usize,
+) -> usize {
+    if count <= max_leaf.max(1) {
+        nodes[at] = leaf(&Aabb::EMPTY, offset, count);
+        return depth;
+    }
+    let left = nodes.len();
+    nodes.push(PLACEHOLDER);
+    nodes.push(PLACEHOLDER);
+    nodes[at] = inner(&Aabb::EMPTY, left);
+    let mid = count / 2;
+    let dl = build_empty(mid, offset, max_leaf, depth + 1, nodes, left);
+    let dr = build_empty(
+        count - mid,
+        offset + mid,
+        max_leaf,
+        depth + 1,
+        nodes,
+        left + 1,
+    );
+    dl.max(dr)
+}
+
+/// A subtree's node with its local child index k ≥ 1 moved to base + k − 1.
+#[inline]
+fn relocate(n: &BvhNode, base: usize) -> BvhNode {
+    let mut n = *n;
+    if n.count == 0 {
+        n.left_or_first = (n.left_or_first as usize + base - 1) as u32;
+    }
+    n
+}
+
+/// Writes `top` with its root at `at`, children after the current end.
+fn flatten(top: Top, at: usize, nodes: &mut Vec<BvhNode>) {
+    match top {
+        Top::Sub(sub) => {
+            // Local index k ≥ 1 goes to base + k − 1; the root goes to `at`.
+            let base = nodes.len();
+            nodes[at] = relocate(&sub[0], base);
+            nodes.extend(sub[1..].iter().map(|n| relocate(n, base)));
+        }
+        Top::Inner(bounds, children) => {
+            let left = nodes.len();
+            nodes.push(PLACEHOLDER);
+            nodes.push(PLACEHOLDER);
+            nodes[at] = inner(&bounds, left);
+            let [l, r] = *children;
+            flatten(l, left, nodes);
+            flatten(r, left + 1, nodes);
+        }
+    }
+}
+
+fn count_nodes(top: &Top) -> usize {
+    match top {
+        Top::Sub(sub) => sub.len(),
+        Top::Inner(_, children) => 1 + count_nodes(&children[0]) + count_nodes(&children[1]),
+    }
+}
+
+fn node_box(n: &BvhNode) -> Aabb {
+    Aabb {
+        min: Vec3::from_array(n.min).extend(0.0),
+        max: Vec3::from_array(n.max).extend(0.0),
+    }
+}
+
+/// Reinsertion (Bittner et al. 2013, sequential): each of the largest nodes in turn is
+/// taken out of the tree (its sibling takes its parent's place) and put back beside the
+/// node where it adds the least SAH cost (found by branch and bound from the root), which
+/// may be where it was. `fraction` of the nodes, largest first, in each of `passes`
+/// passes. Deterministic: one fixed order.
+fn reinsert(nodes: &mut [BvhNode], passes: usize, fraction: f32) {
+    const NONE: u32 = u32::MAX;
+    if nodes.len() < 5 {
+        return; // nothing below the root's children
+    }
+    let mut parent = vec![NONE; nodes.len()];
+    for (i, n) in nodes.iter().enumerate() {
+        if n.count == 0 {
+            parent[n.left_or_first as usize] = i as u32;
+            parent[n.left_or_first as usize + 1] = i as u32;
+        }
+    }
+    let area = |n: &BvhNode| node_box(n).half_area();
+    // Recomputes the boxes of `at` and its ancestors (while they change).
+    fn refit(nodes: &mut [BvhNode], parent: &[u32], mut at: u32) {
+        while at != u32::MAX {
+            let n = &nodes[at as usize];
+            let c = n.left_or_first as usize;
+            let b = node_box(&nodes[c]).union(&node_box(&nodes[c + 1]));
+            let (min, max) = (b.min3(), b.max3());
+            let n = &mut nodes[at as usize];
+            if n.min == min && n.max == max {
+                break;
+            }
+            n.min = min;
+            n.max = max;
+            at = parent[at as usize];
+        }
+    }
+    let mut heap = std::collections::BinaryHeap::new();
+    for _ in 0..passes {
+        let mut order: Vec<(f32, u32)> = (1..nodes.len() as u32)
+            .map(|i| (area(&nodes[i as usize]), i))
+            .collect();
+        let take = ((order.len() as f32 * fraction) as usize).clamp(1, order.len());
+        order.select_nth_unstable_by(take - 1, |a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        order.truncate(take);
+        order.sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        for &(_, n) in &order {
+            let p = parent[n as usize];
+            if p == NONE || parent[p as usize] == NONE {
+                continue; // the root or a child of the root
+            }
+            let pair = nodes[p as usize].left_or_first;
+            let s = if n == pair { pair + 1 } else { pair };
+            // Take n out: its sibling's record moves into the parent's slot.
+            nodes[p as usize] = nodes[s as usize];
+            if nodes[p as usize].count == 0 {
+                let c = nodes[p as usize].left_or_first as usize;
+                parent[c] = p;
+                parent[c + 1] = p;
+            }
+            refit(nodes, &parent, parent[p as usize]);
+            // The best node to pair n with.
+            let nb = node_box(&nodes[n as usize]);
+            let na = nb.half_area();
+            let mut best = (f32::INFINITY, 0u32);
+            heap.clear();
+            // Keyed by the induced cost's bits: it is never negative, and non-negative
+            // floats order as their bits do.
+            heap.push((Reverse(0.0f32.to_bits()), 0u32));
+            while let Some((Reverse(induced), x)) = heap.pop() {
+                let induced = f32::from_bits(induced);
+                if induced + na >= best.0 {
+                    break;
+                }
+                let xb = node_box(&nodes[x as usize]);
+                let joined = xb.union(&nb).half_area();
+                if induced + joined < best.0 {
+                    best = (induced + joined, x);
+                }
+                let xn = &nodes[x as usize];
+                if xn.count == 0 {
+                    let child_induced = induced + joined - xb.half_area();
+                    if child_induced + na < best.0 {
+                        let c = xn.left_or_first;
+                        heap.push((Reverse(child_induced.to_bits()), c));
+                        heap.push((Reverse(child_induced.to_bits()), c + 1));
+                    }
+                }
+            }
+            // Pair n with x: x's record moves into the free slot s, a new inner node
+            // over the pair (n, s) takes x's slot.
+            let x = best.1;
+            nodes[s as usize] = nodes[x as usize];
+            if nodes[s as usize].count == 0 {
+                let c = nodes[s as usize].left_or_first as usize;
+                parent[c] = s;
+                parent[c + 1] = s;
+            }
+            let b = node_box(&nodes[s as usize]).union(&nb);
+            nodes[x as usize] = BvhNode {
+                min: b.min3(),
+                left_or_first: pair,
+                max: b.max3(),
+                count: 0,
+            };
+            parent[n as usize] = x;
+            parent[s as usize] = x;
+            refit(nodes, &parent, parent[x as usize]);
+        }
+    }
+}
+
+/// The nodes in depth-first order with siblings adjacent (the builder's layout, which
+/// reinsertion disturbs); returns them with the tree's depth (the root alone: 1).
+fn relayout(nodes: &[BvhNode]) -> (Vec<BvhNode>, usize) {
+    let mut out = Vec::with_capacity(nodes.len());
+    out.push(PLACEHOLDER);
+    let mut stack = vec![(0usize, 0usize, 1usize)];
+    let mut max_depth = 1;
+    while let Some((old, new, depth)) = stack.pop() {
+        max_depth = max_depth.max(depth);
+        let mut n = nodes[old];
+        if n.count == 0 {
+            let left = out.len();
+            out.push(PLACEHOLDER);
+            out.push(PLACEHOLDER);
+            let c = n.left_or_first as usize;
+            stack.push((c + 1, left + 1, depth + 1));
+            stack.push((c, left, depth + 1));
+            n.left_or_first = left as u32;
+        }
+        out[new] = n;
+    }
+    (out, max_depth)
+}
+
+/// Builds the nodes and primitive order of a BVH over `boxes` (non-empty); returns them
+/// with the tree's depth (the root alone: 1).
+pub(super) fn build(
+    boxes: &[Bounds3],
+    settings: &BuildSettings,
+) -> (Vec<BvhNode>, Vec<u32>, usize) {
+    assert!(
+        u32::try_from(boxes.len()).is_ok(),
+        "a BVH takes at most 2^32 primitives"
+    );
+    let builder = Builder {
+        settings: *settings,
+        bins: settings.bins.clamp(2, MAX_BINS),
+    };
+    // Boxes that are empty go last, into a subtree of their own.
+    let empty = boxes.par_iter().filter(|b| b.is_empty()).count();
+    let mut prims: Vec<PrimRef> = if empty == 0 {
+        boxes
+            .par_iter()
+            .enumerate()
+            .map(|(i, b)| PrimRef::new(b, i as u32))
+            .collect()
+    } else {
+        let mut v: Vec<PrimRef> = Vec::with_capacity(boxes.len());
+        for pass_empty in [false, true] {
+            v.extend(
+                boxes
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, b)| b.is_empty() == pass_empty)
+                    .map(|(i, b)| PrimRef::new(b, i as u32)),
+            );
+        }
+        v
+    };
+    let full = boxes.len() - empty;
+    let (top, depth) = {
+        let (full_prims, empty_prims) = prims.split_at_mut(full);
+        let empty_tree = || {
+            let mut nodes = vec![PLACEHOLDER];
+            let d = build_empty(
+                empty_prims.len(),
+                full,
+                settings.max_leaf_size,
+                usize::from(full > 0),
+                &mut nodes,
+                0,
+            );
+            (Top::Sub(nodes), d)
+        };
+        if full == 0 {
+            empty_tree()
+        } else {
+            let range = Range::of_par(full_prims);
+            if empty == 0 {
+                builder.build_top(full_prims, 0, &range, 0)
+            } else {
+                let (t, d) = builder.build_top(full_prims, 0, &range, 1);
+                let (e, de) = empty_tree();
+                (Top::Inner(range.bounds, Box::new([t, e])), d.max(de))
+            }
+        }
+    };
+    let nodes = match top {
+        Top::Sub(nodes) => nodes,
+        top => {
+            let mut nodes = Vec::with_capacity(count_nodes(&top));
+            nodes.push(PLACEHOLDER);
+            flatten(top, 0, &mut nodes);
+            nodes
+        }
+    };
+    let prim_indices = prims.par_iter().map(PrimRef::index).collect();
+    if settings.reinsertion_passes > 0 && settings.traversal_cost > 0.0 && empty == 0 {
+        let mut optimised = nodes.clone();
+        reinsert(&mut optimised, settings.reinsertion_passes, 1.0);
+        let (optimised, optimised_depth) = relayout(&optimised);
+        // Reinsertion deepens some subtrees: keep it only within the traversal stack.
+        if optimised_depth <= STACK_SIZE - 8 {
+            return (optimised, prim_indices, optimised_depth);
+        }
+    }
+    (nodes, prim_indices, depth + 1)
+}
