@@ -103,6 +103,9 @@ pub struct BuildSettings {
     /// and put back where it adds the least SAH cost); 0: none. Needs a positive
     /// `traversal_cost` (it moves inner nodes' boxes).
     pub reinsertion_passes: usize,
+    /// Ranges of at most this many primitives always become leaves: the wide BVHs set it
+    /// to their SIMD block size, since they merge such subtrees into one block anyway.
+    pub always_leaf: usize,
 }
 
 impl Default for BuildSettings {
@@ -120,6 +123,7 @@ impl BuildSettings {
         cost_termination: true,
         sweep_size: 16,
         reinsertion_passes: 0,
+        always_leaf: 0,
     };
     /// The default.
     pub const QUALITY: BuildSettings = BuildSettings {
@@ -129,6 +133,7 @@ impl BuildSettings {
         cost_termination: true,
         sweep_size: 16,
         reinsertion_passes: 0,
+        always_leaf: 0,
     };
     /// A slower build for a better tree: 64 bins, a full SAH sweep over ranges of up to
     /// 64 primitives, then one pass of reinsertion.
@@ -139,6 +144,7 @@ impl BuildSettings {
         cost_termination: true,
         sweep_size: 64,
         reinsertion_passes: 1,
+        always_leaf: 0,
     };
     /// The lightwave course's textbook build: binned SAH with no cost termination and
     /// leaves of at most two primitives, which reproduces the course's traversal
@@ -152,6 +158,7 @@ impl BuildSettings {
         cost_termination: false,
         sweep_size: 0,
         reinsertion_passes: 0,
+        always_leaf: 0,
     };
 }
 

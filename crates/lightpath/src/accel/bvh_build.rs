@@ -482,7 +482,7 @@ impl Builder {
     ) -> Option<Split> {
         let n = prims.len();
         let s = &self.settings;
-        if n == 1 || (!s.cost_termination && n <= s.max_leaf_size) {
+        if n == 1 || n <= s.always_leaf || (!s.cost_termination && n <= s.max_leaf_size) {
             return None;
         }
         if depth >= MEDIAN_DEPTH {

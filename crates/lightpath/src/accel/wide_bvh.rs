@@ -77,7 +77,12 @@ impl Bvh4 {
     /// Builds the binary SAH tree, then collapses it.
     pub fn build(boxes: &[Bounds3], settings: &BuildSettings) -> Bvh4 {
         let start = Instant::now();
-        let bvh = Bvh::build(boxes, settings);
+        // Subtrees of one block become leaves in the collapse: no need to build them.
+        let settings = BuildSettings {
+            always_leaf: super::collapse::LEAF_ALIGN,
+            ..*settings
+        };
+        let bvh = Bvh::build(boxes, &settings);
         let mut wide = Bvh4::collapse(&bvh);
         wide.build_seconds = start.elapsed().as_secs_f64();
         wide
