@@ -12,7 +12,7 @@
 //! | `LIGHTPATH_BENCH_MESH`    | triangle mesh (`.ply`, `.obj`)                        | `../shared/models/stanford-bunny/bunny.ply` |
 //! | `LIGHTPATH_BENCH_RAYS`    | folder with `{primary,random,shadow,diffuse}.rays`    | `../shared/tools/embree-bench/out/rays_bunny`, else `/tmp/rays_bunny` |
 //! | `LIGHTPATH_BENCH_REPS`    | timed passes after one warm-up                        | 5 |
-//! | `LIGHTPATH_BENCH_ACCELS`  | lightpath kinds, comma-separated (`bvh2,bvh4,kdtree,…`) | `bvh2,bvh4` |
+//! | `LIGHTPATH_BENCH_ACCELS`  | lightpath kinds, comma-separated (`bvh2,bvh4,kdtree,…`) | `bvh2,bvh4,bvh8` |
 //! | `LIGHTPATH_BENCH_OBVHS`   | obvhs layouts, comma-separated (`cwbvh`, `bvh2`)      | `cwbvh` |
 //! | `LIGHTPATH_BENCH_OBVHS_PRESET` | obvhs build preset: `fastest`, `very_fast`, `fast`, `medium`, `slow`, `very_slow` | `medium` |
 //! | `RAYON_NUM_THREADS`       | threads of the multi-threaded passes                  | all cores |
@@ -420,7 +420,7 @@ fn main() {
         Err(_) if smoke => 1,
         Err(_) => 5,
     };
-    let kinds: Vec<(String, AccelKind)> = list_from_env("LIGHTPATH_BENCH_ACCELS", "bvh2,bvh4")
+    let kinds: Vec<(String, AccelKind)> = list_from_env("LIGHTPATH_BENCH_ACCELS", "bvh2,bvh4,bvh8")
         .into_iter()
         .map(|name| match AccelKind::from_name(&name) {
             Some(kind) => (name, kind),
