@@ -27,12 +27,11 @@
 //! costs one node test.
 
 use super::bvh::{has_zero_component, BuildSettings, Bvh};
-use super::collapse::{collapse, wide_cover, EMPTY};
+use super::collapse::{any_prim, build_binary, collapse, each_prim, wide_cover, EMPTY};
 use super::RayStats;
 use crate::math::{Bounds3, Ray};
 use glam::{Vec3, Vec4};
 use std::mem::MaybeUninit;
-use std::time::Instant;
 
 /// Eight children's boxes and references; see the module docs.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -235,13 +234,7 @@ pub struct Bvh8 {
 impl Bvh8 {
     /// Builds the binary SAH tree, then collapses it.
     pub fn build(boxes: &[Bounds3], settings: &BuildSettings) -> Bvh8 {
-        let start = Instant::now();
-        // Subtrees of one block become leaves in the collapse: no need to build them.
-        let settings = BuildSettings {
-            always_leaf: super::collapse::LEAF_ALIGN,
-            ..*settings
-        };
-        let bvh = Bvh::build(boxes, &settings);
+        let (bvh, start) = build_binary(boxes, settings);
         let mut wide = Bvh8::collapse(&bvh);
         wide.build_seconds = start.elapsed().as_secs_f64();
         wide
@@ -350,21 +343,9 @@ impl Bvh8 {
         &self,
         ray: &Ray,
         stats: &mut RayStats,
-        mut hit: F,
+        hit: F,
     ) -> bool {
-        let prims = &self.prim_order;
-        self.intersect_leaves(
-            ray,
-            stats,
-            |_| {},
-            |first, count, t_max| {
-                let mut any = false;
-                for &prim in &prims[first as usize..(first + count) as usize] {
-                    any |= hit(prim, t_max);
-                }
-                any
-            },
-        )
+        self.intersect_leaves(ray, stats, |_| {}, each_prim(&self.prim_order, hit))
     }
 
     /// Any hit: returns at the first primitive that blocks the ray.
@@ -373,19 +354,9 @@ impl Bvh8 {
         &self,
         ray: &Ray,
         stats: &mut RayStats,
-        mut blocks: F,
+        blocks: F,
     ) -> bool {
-        let prims = &self.prim_order;
-        self.occluded_leaves(
-            ray,
-            stats,
-            |_| {},
-            |first, count| {
-                prims[first as usize..(first + count) as usize]
-                    .iter()
-                    .any(|&prim| blocks(prim))
-            },
-        )
+        self.occluded_leaves(ray, stats, |_| {}, any_prim(&self.prim_order, blocks))
     }
 
     /// Closest hit by whole leaves: `leaf(first, count, &mut t_max)` tests the

@@ -48,6 +48,49 @@ pub struct Collapsed<const W: usize> {
     pub prim_order: Vec<u32>,
 }
 
+/// Builds the binary tree a wide BVH is collapsed from, and returns it with the moment
+/// the build started: subtrees of one block become leaves in the collapse, so the
+/// binary build stops there (`BuildSettings::always_leaf`).
+pub fn build_binary(
+    boxes: &[crate::math::Bounds3],
+    settings: &super::bvh::BuildSettings,
+) -> (Bvh, std::time::Instant) {
+    let start = std::time::Instant::now();
+    let settings = super::bvh::BuildSettings {
+        always_leaf: LEAF_ALIGN,
+        ..*settings
+    };
+    (Bvh::build(boxes, &settings), start)
+}
+
+/// A closest-hit leaf callback that hands each primitive of the leaf to `hit`.
+#[inline(always)]
+pub fn each_prim<'a, F: FnMut(u32, &mut f32) -> bool + 'a>(
+    prims: &'a [u32],
+    mut hit: F,
+) -> impl FnMut(u32, u32, &mut f32) -> bool + 'a {
+    move |first, count, t_max| {
+        let mut any = false;
+        for &prim in &prims[first as usize..(first + count) as usize] {
+            any |= hit(prim, t_max);
+        }
+        any
+    }
+}
+
+/// An any-hit leaf callback that asks `blocks` for each primitive of the leaf.
+#[inline(always)]
+pub fn any_prim<'a, F: FnMut(u32) -> bool + 'a>(
+    prims: &'a [u32],
+    mut blocks: F,
+) -> impl FnMut(u32, u32) -> bool + 'a {
+    move |first, count| {
+        prims[first as usize..(first + count) as usize]
+            .iter()
+            .any(|&prim| blocks(prim))
+    }
+}
+
 /// Levels of wide nodes whose subtrees are collapsed in parallel.
 const PARALLEL_LEVELS: usize = 2;
 

@@ -14,11 +14,10 @@
 //! inner node, else the number of primitives; `u32::MAX` for an unused slot).
 
 use super::bvh::{has_zero_component, BuildSettings, Bvh};
-use super::collapse::{collapse, wide_cover, EMPTY};
+use super::collapse::{any_prim, build_binary, collapse, each_prim, wide_cover, EMPTY};
 use super::RayStats;
 use crate::math::{Bounds3, Ray};
 use glam::{Vec3, Vec4};
-use std::time::Instant;
 
 /// Four children's boxes and references; see the module docs.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -76,13 +75,7 @@ pub struct Bvh4 {
 impl Bvh4 {
     /// Builds the binary SAH tree, then collapses it.
     pub fn build(boxes: &[Bounds3], settings: &BuildSettings) -> Bvh4 {
-        let start = Instant::now();
-        // Subtrees of one block become leaves in the collapse: no need to build them.
-        let settings = BuildSettings {
-            always_leaf: super::collapse::LEAF_ALIGN,
-            ..*settings
-        };
-        let bvh = Bvh::build(boxes, &settings);
+        let (bvh, start) = build_binary(boxes, settings);
         let mut wide = Bvh4::collapse(&bvh);
         wide.build_seconds = start.elapsed().as_secs_f64();
         wide
@@ -234,16 +227,9 @@ impl Bvh4 {
         &self,
         ray: &Ray,
         stats: &mut RayStats,
-        mut hit: F,
+        hit: F,
     ) -> bool {
-        let prims = &self.prim_indices;
-        self.intersect_leaves(ray, stats, |first, count, t_max| {
-            let mut any = false;
-            for &prim in &prims[first as usize..(first + count) as usize] {
-                any |= hit(prim, t_max);
-            }
-            any
-        })
+        self.intersect_leaves(ray, stats, each_prim(&self.prim_indices, hit))
     }
 
     /// Closest hit by whole leaves: `leaf(first, count, &mut t_max)` tests the
@@ -340,14 +326,9 @@ impl Bvh4 {
         &self,
         ray: &Ray,
         stats: &mut RayStats,
-        mut blocks: F,
+        blocks: F,
     ) -> bool {
-        let prims = &self.prim_indices;
-        self.occluded_leaves(ray, stats, |first, count| {
-            prims[first as usize..(first + count) as usize]
-                .iter()
-                .any(|&prim| blocks(prim))
-        })
+        self.occluded_leaves(ray, stats, any_prim(&self.prim_indices, blocks))
     }
 
     /// Any hit by whole leaves: `blocks(first, count)` says whether a primitive at the
