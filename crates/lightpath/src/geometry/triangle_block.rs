@@ -134,6 +134,163 @@ impl TriangleBlock {
     }
 }
 
+/// The hits of two consecutive blocks as eight lanes: a bit mask (block `a` in bits
+/// 0-3, `b` in 4-7), distances and barycentrics `b1`, `b2`.
+pub type PairHits = (u32, [f32; 8], [f32; 8], [f32; 8]);
+
+/// Two blocks tested at once with 8-lane AVX2: the same operations as
+/// [`TriangleBlock::intersect`] in the same order, so every lane equals the 4-lane (and
+/// the scalar) result bit for bit.
+///
+/// # Safety
+/// The processor must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+#[target_feature(enable = "avx2")]
+pub unsafe fn intersect_pair_avx2(
+    a: &TriangleBlock,
+    b: &TriangleBlock,
+    wr: &WatertightRay,
+    t_min: f32,
+    t_max: f32,
+) -> PairHits {
+    use std::arch::x86_64::*;
+    let (kx, ky, kz) = wr.axes();
+    let o = wr.origin;
+    let (ox, oy, oz) = (
+        _mm256_set1_ps(o[kx]),
+        _mm256_set1_ps(o[ky]),
+        _mm256_set1_ps(o[kz]),
+    );
+    let s = wr.shear();
+    let (sx, sy, sz) = (
+        _mm256_set1_ps(s.x),
+        _mm256_set1_ps(s.y),
+        _mm256_set1_ps(s.z),
+    );
+    let lanes = |v: usize, axis: usize| -> __m256 {
+        _mm256_set_m128(b.p[v][axis].into(), a.p[v][axis].into())
+    };
+    let (sub, mul, add) = (_mm256_sub_ps, _mm256_mul_ps, _mm256_add_ps);
+    let az = sub(lanes(0, kz), oz);
+    let bz = sub(lanes(1, kz), oz);
+    let cz = sub(lanes(2, kz), oz);
+    let ax = add(sub(lanes(0, kx), ox), mul(sx, az));
+    let ay = add(sub(lanes(0, ky), oy), mul(sy, az));
+    let bx = add(sub(lanes(1, kx), ox), mul(sx, bz));
+    let by = add(sub(lanes(1, ky), oy), mul(sy, bz));
+    let cx = add(sub(lanes(2, kx), ox), mul(sx, cz));
+    let cy = add(sub(lanes(2, ky), oy), mul(sy, cz));
+    let e0 = sub(mul(bx, cy), mul(by, cx));
+    let e1 = sub(mul(cx, ay), mul(cy, ax));
+    let e2 = sub(mul(ax, by), mul(ay, bx));
+    let zero = _mm256_setzero_ps();
+    let (or, and, andnot) = (_mm256_or_ps, _mm256_and_ps, _mm256_andnot_ps);
+    let is_zero = or(
+        or(
+            _mm256_cmp_ps::<_CMP_EQ_OQ>(e0, zero),
+            _mm256_cmp_ps::<_CMP_EQ_OQ>(e1, zero),
+        ),
+        _mm256_cmp_ps::<_CMP_EQ_OQ>(e2, zero),
+    );
+    if _mm256_movemask_ps(is_zero) != 0 {
+        // Exactly zero edge functions: the 4-lane path falls back to the scalar test.
+        let (ba, ta, ua, va) = a.intersect(wr, t_min, t_max);
+        let (bb, tb, ub, vb) = b.intersect(wr, t_min, t_max);
+        let join = |x: Vec4, y: Vec4| {
+            let mut out = [0.0; 8];
+            out[..4].copy_from_slice(&x.to_array());
+            out[4..].copy_from_slice(&y.to_array());
+            out
+        };
+        return (ba | bb << 4, join(ta, tb), join(ua, ub), join(va, vb));
+    }
+    let lt = |x| _mm256_cmp_ps::<_CMP_LT_OQ>(x, zero);
+    let gt = |x| _mm256_cmp_ps::<_CMP_GT_OQ>(x, zero);
+    let negative = or(or(lt(e0), lt(e1)), lt(e2));
+    let positive = or(or(gt(e0), gt(e1)), gt(e2));
+    let det = add(add(e0, e1), e2);
+    let mut valid = andnot(
+        and(negative, positive),
+        _mm256_cmp_ps::<_CMP_NEQ_UQ>(det, zero),
+    );
+    let none = (0, [0.0; 8], [0.0; 8], [0.0; 8]);
+    if _mm256_movemask_ps(valid) == 0 {
+        return none;
+    }
+    let (az, bz, cz) = (mul(az, sz), mul(bz, sz), mul(cz, sz));
+    let t_scaled = add(add(mul(e0, az), mul(e1, bz)), mul(e2, cz));
+    let lo = mul(_mm256_set1_ps(t_min), det);
+    let hi = mul(_mm256_set1_ps(t_max), det);
+    let det_negative = lt(det);
+    let reject_negative = and(
+        det_negative,
+        or(
+            _mm256_cmp_ps::<_CMP_GE_OQ>(t_scaled, lo),
+            _mm256_cmp_ps::<_CMP_LT_OQ>(t_scaled, hi),
+        ),
+    );
+    let reject_positive = andnot(
+        det_negative,
+        or(
+            _mm256_cmp_ps::<_CMP_LE_OQ>(t_scaled, lo),
+            _mm256_cmp_ps::<_CMP_GT_OQ>(t_scaled, hi),
+        ),
+    );
+    valid = andnot(or(reject_negative, reject_positive), valid);
+    if _mm256_movemask_ps(valid) == 0 {
+        return none;
+    }
+    let inv_det = _mm256_div_ps(_mm256_set1_ps(1.0), det);
+    let t = mul(t_scaled, inv_det);
+    let abs = |x| _mm256_andnot_ps(_mm256_set1_ps(-0.0), x);
+    let max = _mm256_max_ps;
+    let max_zt = max(max(abs(az), abs(bz)), abs(cz));
+    let delta_z = mul(_mm256_set1_ps(gamma(3)), max_zt);
+    let max_xt = max(max(abs(ax), abs(bx)), abs(cx));
+    let max_yt = max(max(abs(ay), abs(by)), abs(cy));
+    let g5 = _mm256_set1_ps(gamma(5));
+    let delta_x = mul(g5, add(max_xt, max_zt));
+    let delta_y = mul(g5, add(max_yt, max_zt));
+    let delta_e = mul(
+        _mm256_set1_ps(2.0),
+        add(
+            add(
+                mul(mul(_mm256_set1_ps(gamma(2)), max_xt), max_yt),
+                mul(delta_y, max_xt),
+            ),
+            mul(delta_x, max_yt),
+        ),
+    );
+    let max_e = max(max(abs(e0), abs(e1)), abs(e2));
+    let delta_t = mul(
+        mul(
+            _mm256_set1_ps(3.0),
+            add(
+                add(
+                    mul(mul(_mm256_set1_ps(gamma(3)), max_e), max_zt),
+                    mul(delta_e, max_zt),
+                ),
+                mul(delta_z, max_e),
+            ),
+        ),
+        abs(inv_det),
+    );
+    valid = and(valid, _mm256_cmp_ps::<_CMP_GT_OQ>(t, delta_t));
+    let store = |x: __m256| {
+        let mut out = [0.0f32; 8];
+        // SAFETY: `out` holds eight floats.
+        unsafe { _mm256_storeu_ps(out.as_mut_ptr(), x) };
+        out
+    };
+    (
+        _mm256_movemask_ps(valid) as u32,
+        store(t),
+        store(mul(e1, inv_det)),
+        store(mul(e2, inv_det)),
+    )
+}
+
 #[inline(always)]
 fn mask(b: BVec4A) -> u32 {
     b.bitmask()
@@ -141,7 +298,7 @@ fn mask(b: BVec4A) -> u32 {
 
 /// The nearest of the lanes in `bits` (the lowest lane among equal distances).
 #[inline(always)]
-pub fn nearest_lane(bits: u32, t: Vec4) -> usize {
+pub fn nearest_lane(bits: u32, t: impl std::ops::Index<usize, Output = f32>) -> usize {
     let mut best = bits.trailing_zeros() as usize;
     let mut rest = bits & (bits - 1);
     while rest != 0 {
@@ -207,6 +364,59 @@ mod tests {
                         );
                     }
                     None => assert!(bits & (1 << lane) == 0, "ray {i} lane {lane}: false hit"),
+                }
+            }
+        }
+        assert!(hits > 10000, "only {hits} hits: the test is too weak");
+    }
+
+    /// Two blocks tested as eight AVX2 lanes equal the two 4-lane tests bit for bit,
+    /// including blocks that take the scalar fallback.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx2_pairs_equal_two_blocks() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let mut rng = Pcg32::new(8, 2);
+        let v = |rng: &mut Pcg32| {
+            Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - Vec3::ONE
+        };
+        let mut hits = 0;
+        for i in 0..20000 {
+            let mut tris = [[Vec3::ZERO; 3]; 8];
+            for tri in tris.iter_mut() {
+                *tri = [v(&mut rng), v(&mut rng), v(&mut rng)];
+            }
+            if i % 13 == 0 {
+                tris[5] = [Vec3::ZERO, Vec3::X, Vec3::Y]; // edges on the axes
+            }
+            let a = TriangleBlock::new([tris[0], tris[1], tris[2], tris[3]]);
+            let b = TriangleBlock::new([tris[4], tris[5], tris[6], tris[7]]);
+            let o = v(&mut rng) * 2.0;
+            let aim = tris[i % 8];
+            let mut d = (aim[0] + aim[1] + aim[2]) / 3.0 + v(&mut rng) * 0.2 - o;
+            if i % 5 == 0 {
+                d = [Vec3::Z, Vec3::NEG_X, Vec3::Y][i % 3];
+            }
+            let ray = Ray::with_range(o, d, rng.next_f32() * 0.2, 0.5 + rng.next_f32() * 3.0);
+            let wr = WatertightRay::new(&ray);
+            // SAFETY: AVX2 was detected above.
+            let (bits, t, b1, b2) =
+                unsafe { intersect_pair_avx2(&a, &b, &wr, ray.t_min, ray.t_max) };
+            for (half, block) in [a, b].iter().enumerate() {
+                let (bb, tb, ub, vb) = block.intersect(&wr, ray.t_min, ray.t_max);
+                assert_eq!((bits >> (4 * half)) & 0xf, bb, "ray {i} half {half}");
+                for lane in 0..4 {
+                    if bb & (1 << lane) != 0 {
+                        hits += 1;
+                        let k = 4 * half + lane;
+                        assert_eq!(
+                            (t[k].to_bits(), b1[k].to_bits(), b2[k].to_bits()),
+                            (tb[lane].to_bits(), ub[lane].to_bits(), vb[lane].to_bits()),
+                            "ray {i} lane {k}"
+                        );
+                    }
                 }
             }
         }
