@@ -1,6 +1,9 @@
 //! Triangle meshes with flat or smooth (interpolated) normals and uvs, each with its own
 //! bottom-level BVH, intersected with the watertight test of Woop, Benthin and Wald
 //! (JCGT 2013): rays through shared edges and vertices never slip through a closed mesh.
+//! With the wide BVHs (`bvh4`, `bvh8`, the default) the triangles are also kept packed in
+//! the order of the tree's leaves ([`super::TriangleBlock`]) and tested four at a time,
+//! or eight with AVX2, with results equal to the scalar test's bit for bit.
 //!
 //! ```xml
 //! <instance>
