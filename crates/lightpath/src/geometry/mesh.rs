@@ -155,6 +155,28 @@ pub fn intersect_triangle_watertight(
     Some((t, e0 * inv_det, e1 * inv_det, e2 * inv_det))
 }
 
+/// Takes the nearest of the lanes hit by the block(s) starting at block `b` as the closest
+/// hit `(t, leaf position, barycentrics)`, lowering `t_max` and prefetching the line of
+/// the triangle's index in `order`; returns whether any lane hit.
+#[inline(always)]
+fn take_nearest<T: std::ops::Index<usize, Output = f32>>(
+    b: usize,
+    (bits, t, b1, b2): (u32, T, T, T),
+    order: &[u32],
+    t_max: &mut f32,
+    closest: &mut Option<(f32, usize, Vec2)>,
+) -> bool {
+    if bits == 0 {
+        return false;
+    }
+    let lane = nearest_lane(bits, &t);
+    *t_max = t[lane];
+    let at = b * BLOCK + lane;
+    prefetch_line(order.as_ptr().wrapping_add(at));
+    *closest = Some((t[lane], at, Vec2::new(b1[lane], b2[lane])));
+    true
+}
+
 fn has_avx2() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
@@ -349,7 +371,7 @@ impl TriangleMesh {
                     #[cfg(target_arch = "x86_64")]
                     while self.avx2 && b + 1 < end {
                         // SAFETY: `avx2` is set only where the processor supports AVX2.
-                        let (bits, t, b1, b2) = unsafe {
+                        let hits = unsafe {
                             intersect_pair_avx2(
                                 &self.blocks[b],
                                 &self.blocks[b + 1],
@@ -358,26 +380,12 @@ impl TriangleMesh {
                                 *t_max,
                             )
                         };
-                        if bits != 0 {
-                            let lane = nearest_lane(bits, t);
-                            *t_max = t[lane];
-                            let at = b * BLOCK + lane;
-                            prefetch_line(order.as_ptr().wrapping_add(at));
-                            closest = Some((t[lane], at, Vec2::new(b1[lane], b2[lane])));
-                            found = true;
-                        }
+                        found |= take_nearest(b, hits, order, t_max, &mut closest);
                         b += 2;
                     }
                     while b < end {
-                        let (bits, t, b1, b2) = self.blocks[b].intersect(&wr, ray.t_min, *t_max);
-                        if bits != 0 {
-                            let lane = nearest_lane(bits, t);
-                            *t_max = t[lane];
-                            let at = b * BLOCK + lane;
-                            prefetch_line(order.as_ptr().wrapping_add(at));
-                            closest = Some((t[lane], at, Vec2::new(b1[lane], b2[lane])));
-                            found = true;
-                        }
+                        let hits = self.blocks[b].intersect(&wr, ray.t_min, *t_max);
+                        found |= take_nearest(b, hits, order, t_max, &mut closest);
                         b += 1;
                     }
                     found

@@ -298,7 +298,7 @@ fn mask(b: BVec4A) -> u32 {
 
 /// The nearest of the lanes in `bits` (the lowest lane among equal distances).
 #[inline(always)]
-pub fn nearest_lane(bits: u32, t: impl std::ops::Index<usize, Output = f32>) -> usize {
+pub fn nearest_lane<T: std::ops::Index<usize, Output = f32> + ?Sized>(bits: u32, t: &T) -> usize {
     let mut best = bits.trailing_zeros() as usize;
     let mut rest = bits & (bits - 1);
     while rest != 0 {
@@ -426,8 +426,8 @@ mod tests {
     #[test]
     fn nearest_lane_takes_the_smallest_distance() {
         let t = Vec4::new(3.0, 1.0, 2.0, 1.0);
-        assert_eq!(nearest_lane(0b1111, t), 1);
-        assert_eq!(nearest_lane(0b0101, t), 2);
-        assert_eq!(nearest_lane(0b1000, t), 3);
+        assert_eq!(nearest_lane(0b1111, &t), 1);
+        assert_eq!(nearest_lane(0b0101, &t), 2);
+        assert_eq!(nearest_lane(0b1000, &t), 3);
     }
 }
