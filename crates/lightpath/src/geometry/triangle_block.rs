@@ -14,7 +14,7 @@
 
 use super::mesh::{intersect_triangle_watertight, WatertightRay};
 use crate::math::gamma;
-use glam::{BVec4A, Vec3, Vec4};
+use glam::{Vec3, Vec4};
 
 /// Four triangles' vertices as structure of arrays: `p[vertex][axis]` holds that
 /// coordinate of the four triangles (144 bytes).
@@ -108,7 +108,7 @@ impl TriangleBlock {
             * (Vec4::splat(gamma(3)) * max_e * max_zt + delta_e * max_zt + delta_z * max_e)
             * inv_det.abs();
         valid &= t.cmpgt(delta_t);
-        (mask(valid), t, e1 * inv_det, e2 * inv_det)
+        (valid.bitmask(), t, e1 * inv_det, e2 * inv_det)
     }
 
     /// The same test one lane at a time (for lanes with an edge function of exactly 0).
@@ -289,11 +289,6 @@ pub unsafe fn intersect_pair_avx2(
         store(mul(e1, inv_det)),
         store(mul(e2, inv_det)),
     )
-}
-
-#[inline(always)]
-fn mask(b: BVec4A) -> u32 {
-    b.bitmask()
 }
 
 /// The nearest of the lanes in `bits` (the lowest lane among equal distances).
