@@ -4,7 +4,9 @@
 //! one untimed warm-up, then the median of `--reps` passes, file I/O excluded, single-
 //! threaded and on all threads. `--json FILE` writes embree-bench's key layout per
 //! accelerator (`build.st.ms_median`, `traversal.st.primary.mrays_per_s_median`, …), so
-//! the two outputs compare key by key.
+//! the two outputs compare key by key. The single-threaded entries also carry the mean
+//! nodes visited and primitives tested per ray (`nodes_visited_per_ray`,
+//! `prims_tested_per_ray`), counted in a separate untimed pass.
 
 use crate::fsutil;
 use crate::heatmap;
@@ -69,6 +71,24 @@ fn pass(mesh: &TriangleMesh, rays: &[Ray], occluded: bool, threads: usize) -> (f
         rays.par_iter().filter(|r| trace(mesh, r, occluded)).count()
     };
     (start.elapsed().as_secs_f64() * 1e3, hits as u64)
+}
+
+/// Mean nodes visited and primitives tested per ray, from an untimed pass.
+fn cost_per_ray(mesh: &TriangleMesh, rays: &[Ray], occluded: bool) -> (f64, f64) {
+    let (nodes, prims) = rays
+        .par_iter()
+        .map(|r| {
+            let mut s = RayStats::default();
+            if occluded {
+                mesh.occluded(r, &mut s);
+            } else {
+                mesh.intersect(r, &mut s);
+            }
+            (u64::from(s.nodes_visited), u64::from(s.prims_tested))
+        })
+        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+    let n = rays.len().max(1) as f64;
+    (nodes as f64 / n, prims as f64 / n)
 }
 
 #[inline]
@@ -191,6 +211,13 @@ pub fn run(args: BenchArgs) -> Result<()> {
                         "mrays_per_s_best": rays.len() as f64 / (best * 1e3),
                     }),
                 );
+                if threads == 1 {
+                    // Traversal cost, counted in a separate untimed pass.
+                    let (nodes, prims) = cost_per_ray(&mesh, rays, *occluded);
+                    let entry = per_set[*set].as_object_mut().expect("inserted above");
+                    entry.insert("nodes_visited_per_ray".into(), json!(nodes));
+                    entry.insert("prims_tested_per_ray".into(), json!(prims));
+                }
                 line[usize::from(threads != 1)] += &format!(" {mrays:>8.2}");
             }
             per_set.insert("threads".into(), json!(threads));
