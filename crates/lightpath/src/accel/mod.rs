@@ -15,6 +15,7 @@ mod cover;
 pub mod grid;
 pub mod kdtree;
 mod list;
+mod memory;
 pub mod octree;
 #[cfg(test)]
 mod testing;
@@ -26,6 +27,7 @@ pub use bvh8::{Bvh8, Bvh8Node};
 pub use grid::Grid;
 pub use kdtree::{KdNode, KdTree};
 pub use list::ListAccel;
+pub(crate) use memory::collect_huge;
 pub use octree::{Octree, OctreeNode};
 pub use wide_bvh::{Bvh4, Bvh4Node};
 

@@ -203,23 +203,20 @@ fn prefetch_line<T>(p: *const T) {
 /// Packs the triangles at the accelerator's leaf positions into blocks of four.
 fn pack_blocks(positions: &[Vec3], indices: &[[u32; 3]], order: &[u32]) -> Vec<TriangleBlock> {
     use rayon::prelude::*;
-    order
-        .par_chunks(BLOCK)
-        .map(|chunk| {
-            let mut tris = [[Vec3::ZERO; 3]; BLOCK];
-            for (lane, tri) in tris.iter_mut().enumerate() {
-                // A short last chunk repeats its last triangle (leaves are padded anyway).
-                let prim = chunk[lane.min(chunk.len() - 1)];
-                let [a, b, c] = indices[prim as usize];
-                *tri = [
-                    positions[a as usize],
-                    positions[b as usize],
-                    positions[c as usize],
-                ];
-            }
-            TriangleBlock::new(tris)
-        })
-        .collect()
+    crate::accel::collect_huge(order.par_chunks(BLOCK).map(|chunk| {
+        let mut tris = [[Vec3::ZERO; 3]; BLOCK];
+        for (lane, tri) in tris.iter_mut().enumerate() {
+            // A short last chunk repeats its last triangle (leaves are padded anyway).
+            let prim = chunk[lane.min(chunk.len() - 1)];
+            let [a, b, c] = indices[prim as usize];
+            *tri = [
+                positions[a as usize],
+                positions[b as usize],
+                positions[c as usize],
+            ];
+        }
+        TriangleBlock::new(tris)
+    }))
 }
 
 impl TriangleMesh {
