@@ -17,7 +17,8 @@
 //!
 //! Traversal, per ray: the near and far plane of each axis are chosen once from the
 //! signs of the direction, so a node test is a subtraction and a multiplication per
-//! plane, then three maxima and minima. The nearest hit child is visited next without
+//! plane, then maxima and minima reduced as two-level trees (see [`NodeTest`]); unused
+//! slots hold empty boxes that no ray enters. The nearest hit child is visited next without
 //! touching the stack; with two hits the farther one is pushed; with more, they are
 //! pushed sorted, nearest on top. Entry distances stay on the stack and entries farther
 //! than the current hit are culled when popped. Pushed inner nodes are prefetched.
@@ -44,8 +45,16 @@ pub struct Bvh8Node {
 
 const _: () = assert!(std::mem::size_of::<Bvh8Node>() == 256);
 
+/// Unused slots keep an empty box (see [`NodeTest`]).
 const EMPTY_NODE: Bvh8Node = Bvh8Node {
-    planes: [[f32::INFINITY; 8]; 6],
+    planes: [
+        [f32::INFINITY; 8],
+        [f32::INFINITY; 8],
+        [f32::INFINITY; 8],
+        [f32::NEG_INFINITY; 8],
+        [f32::NEG_INFINITY; 8],
+        [f32::NEG_INFINITY; 8],
+    ],
     child: [0; 8],
     count: [EMPTY; 8],
 };
@@ -68,6 +77,11 @@ struct Entry {
 struct RayLanes {
     origin: [f32; 3],
     inv: [f32; 3],
+    /// `inv` widened by [`ROBUST_FAR`], for the far planes: scaling the reciprocal once
+    /// per ray keeps the widening off each node test's dependency chain. The extra
+    /// rounding of the product is covered: `(1 - 3u)(1 - u)(1 + 6u) > 1` for the unit
+    /// roundoff `u`, so the far distance still bounds the exact one.
+    inv_far: [f32; 3],
     /// Index into `planes` of the near and far plane of each axis.
     near: [usize; 3],
     far: [usize; 3],
@@ -81,6 +95,7 @@ impl RayLanes {
         RayLanes {
             origin: ray.origin.to_array(),
             inv: inv.to_array(),
+            inv_far: (inv * ROBUST_FAR).to_array(),
             near,
             far: near.map(|p| if p < 3 { p + 3 } else { p - 3 }),
         }
@@ -89,6 +104,14 @@ impl RayLanes {
 
 /// A node test: writes the entry distances of the eight children and returns the bit
 /// mask of those whose box the ray enters within `[t_min, t_max]`.
+///
+/// The entry distance is the maximum of the three near-plane distances and `t_min`, the
+/// exit distance the minimum of the three (widened) far-plane distances and the widened
+/// `t_max`, each reduced as a tree of two levels rather than a chain of three, which
+/// shortens the latency of a node test. Unused slots have empty boxes (minima `+∞`,
+/// maxima `-∞`), whose entry is `+∞` and exit `-∞` for any ray with a finite, non-zero
+/// direction component, so the plain test needs no separate mask for them; the
+/// axis-parallel variant, which orders each axis's two distances, masks them by count.
 trait NodeTest {
     fn test<const AXIS_PARALLEL: bool>(
         node: &Bvh8Node,
@@ -114,28 +137,32 @@ impl NodeTest for Portable {
         let mut mask = 0;
         for half in 0..2 {
             let lanes = |p: usize| Vec4::from_slice(&node.planes[p][4 * half..4 * half + 4]);
-            let (mut lo, mut hi) = (Vec4::splat(t_min), Vec4::splat(t_max));
+            let (mut t0, mut t1) = ([Vec4::ZERO; 3], [Vec4::ZERO; 3]);
             for a in 0..3 {
                 let o = Vec4::splat(ray.origin[a]);
-                let inv = Vec4::splat(ray.inv[a]);
-                let t0 = (lanes(ray.near[a]) - o) * inv;
-                let t1 = (lanes(ray.far[a]) - o) * inv;
+                let n = (lanes(ray.near[a]) - o) * Vec4::splat(ray.inv[a]);
+                let f = (lanes(ray.far[a]) - o) * Vec4::splat(ray.inv_far[a]);
                 if AXIS_PARALLEL {
-                    let on_face = t0.is_nan_mask() | t1.is_nan_mask();
-                    lo = lo.max(Vec4::select(on_face, Vec4::NEG_INFINITY, t0.min(t1)));
-                    hi = hi.min(Vec4::select(on_face, Vec4::INFINITY, t0.max(t1)));
+                    let on_face = n.is_nan_mask() | f.is_nan_mask();
+                    t0[a] = Vec4::select(on_face, Vec4::NEG_INFINITY, n.min(f));
+                    t1[a] = Vec4::select(on_face, Vec4::INFINITY, n.max(f));
                 } else {
-                    lo = lo.max(t0);
-                    hi = hi.min(t1);
+                    (t0[a], t1[a]) = (n, f);
                 }
             }
-            let hit = lo.cmple(hi * ROBUST_FAR).bitmask();
+            let lo = t0[0].max(t0[1]).max(t0[2].max(Vec4::splat(t_min)));
+            let hi = t1[0]
+                .min(t1[1])
+                .min(t1[2].min(Vec4::splat(t_max * ROBUST_FAR)));
+            let hit = lo.cmple(hi).bitmask();
             lo.write_to_slice(&mut near[4 * half..4 * half + 4]);
             mask |= hit << (4 * half);
         }
-        for (k, &c) in node.count.iter().enumerate() {
-            if c == EMPTY {
-                mask &= !(1 << k);
+        if AXIS_PARALLEL {
+            for (k, &c) in node.count.iter().enumerate() {
+                if c == EMPTY {
+                    mask &= !(1 << k);
+                }
             }
         }
         mask
@@ -173,11 +200,10 @@ unsafe fn avx2_test<const AXIS_PARALLEL: bool>(
 ) -> u32 {
     use std::arch::x86_64::*;
     let planes = node.planes.as_ptr() as *const f32;
-    let mut lo = _mm256_set1_ps(t_min);
-    let mut hi = _mm256_set1_ps(t_max);
+    let mut t0 = [_mm256_setzero_ps(); 3];
+    let mut t1 = [_mm256_setzero_ps(); 3];
     for a in 0..3 {
         let o = _mm256_set1_ps(ray.origin[a]);
-        let inv = _mm256_set1_ps(ray.inv[a]);
         // SAFETY: the plane indices are below 6, and nodes are 64-byte aligned, so
         // each plane is an aligned 32-byte load inside the node.
         let (pn, pf) = unsafe {
@@ -186,37 +212,42 @@ unsafe fn avx2_test<const AXIS_PARALLEL: bool>(
                 _mm256_load_ps(planes.add(8 * ray.far[a])),
             )
         };
-        let t0 = _mm256_mul_ps(_mm256_sub_ps(pn, o), inv);
-        let t1 = _mm256_mul_ps(_mm256_sub_ps(pf, o), inv);
+        let n = _mm256_mul_ps(_mm256_sub_ps(pn, o), _mm256_set1_ps(ray.inv[a]));
+        let f = _mm256_mul_ps(_mm256_sub_ps(pf, o), _mm256_set1_ps(ray.inv_far[a]));
         if AXIS_PARALLEL {
             let on_face = _mm256_or_ps(
-                _mm256_cmp_ps::<_CMP_UNORD_Q>(t0, t0),
-                _mm256_cmp_ps::<_CMP_UNORD_Q>(t1, t1),
+                _mm256_cmp_ps::<_CMP_UNORD_Q>(n, n),
+                _mm256_cmp_ps::<_CMP_UNORD_Q>(f, f),
             );
-            let a0 = _mm256_blendv_ps(
-                _mm256_min_ps(t0, t1),
+            t0[a] = _mm256_blendv_ps(
+                _mm256_min_ps(n, f),
                 _mm256_set1_ps(f32::NEG_INFINITY),
                 on_face,
             );
-            let a1 = _mm256_blendv_ps(
-                _mm256_max_ps(t0, t1),
-                _mm256_set1_ps(f32::INFINITY),
-                on_face,
-            );
-            lo = _mm256_max_ps(lo, a0);
-            hi = _mm256_min_ps(hi, a1);
+            t1[a] = _mm256_blendv_ps(_mm256_max_ps(n, f), _mm256_set1_ps(f32::INFINITY), on_face);
         } else {
-            lo = _mm256_max_ps(lo, t0);
-            hi = _mm256_min_ps(hi, t1);
+            (t0[a], t1[a]) = (n, f);
         }
     }
-    let hit = _mm256_cmp_ps::<_CMP_LE_OQ>(lo, _mm256_mul_ps(hi, _mm256_set1_ps(ROBUST_FAR)));
-    // SAFETY: `count` is 32 bytes at offset 224 of a 64-byte aligned node.
-    let count = unsafe { _mm256_load_si256(node.count.as_ptr() as *const __m256i) };
-    let unused = _mm256_cmpeq_epi32(count, _mm256_set1_epi32(-1));
+    let lo = _mm256_max_ps(
+        _mm256_max_ps(t0[0], t0[1]),
+        _mm256_max_ps(t0[2], _mm256_set1_ps(t_min)),
+    );
+    let hi = _mm256_min_ps(
+        _mm256_min_ps(t1[0], t1[1]),
+        _mm256_min_ps(t1[2], _mm256_set1_ps(t_max * ROBUST_FAR)),
+    );
     // SAFETY: `near` holds eight floats.
     unsafe { _mm256_storeu_ps(near.as_mut_ptr(), lo) };
-    (_mm256_movemask_ps(hit) & !_mm256_movemask_ps(_mm256_castsi256_ps(unused))) as u32
+    let hit = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(lo, hi)) as u32;
+    if AXIS_PARALLEL {
+        // SAFETY: `count` is 32 bytes at offset 224 of a 64-byte aligned node.
+        let count = unsafe { _mm256_load_si256(node.count.as_ptr() as *const __m256i) };
+        let unused = _mm256_cmpeq_epi32(count, _mm256_set1_epi32(-1));
+        hit & !(_mm256_movemask_ps(_mm256_castsi256_ps(unused)) as u32)
+    } else {
+        hit
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -244,22 +275,18 @@ impl Bvh8 {
     pub fn collapse(bvh: &Bvh) -> Bvh8 {
         let tree = collapse::<8>(bvh);
         use rayon::prelude::*;
-        let nodes = tree
-            .nodes
-            .par_iter()
-            .map(|slots| {
-                let mut n = EMPTY_NODE;
-                for (k, s) in slots.iter().enumerate() {
-                    for a in 0..3 {
-                        n.planes[a][k] = s.min[a];
-                        n.planes[a + 3][k] = s.max[a];
-                    }
-                    n.child[k] = s.child;
-                    n.count[k] = s.count;
+        let nodes = super::memory::collect_huge(tree.nodes.par_iter().map(|slots| {
+            let mut n = EMPTY_NODE;
+            for (k, s) in slots.iter().enumerate().filter(|(_, s)| s.count != EMPTY) {
+                for a in 0..3 {
+                    n.planes[a][k] = s.min[a];
+                    n.planes[a + 3][k] = s.max[a];
                 }
-                n
-            })
-            .collect();
+                n.child[k] = s.child;
+                n.count[k] = s.count;
+            }
+            n
+        }));
         Bvh8 {
             nodes,
             prim_order: tree.prim_order,
