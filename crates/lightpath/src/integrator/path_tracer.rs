@@ -20,7 +20,7 @@ use crate::light::Light;
 use crate::math::Ray;
 use crate::sampling::Sampler;
 use crate::scene::Scene;
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 #[derive(Debug, Clone)]
 pub struct PathTracer {
@@ -97,8 +97,12 @@ impl PathTracer {
             let bsdf = material.bsdf(&si, si.wo);
 
             // Next-event estimation: one light, one shadow ray.
-            let u_light = sampler.next_1d();
-            let u_prim = sampler.next_1d();
+            // The light and the light's primitive as one 2D sample (stratified together,
+            // and one dimension pair of a low-discrepancy sampler instead of two).
+            let Vec2 {
+                x: u_light,
+                y: u_prim,
+            } = sampler.next_2d();
             let u_point = sampler.next_2d();
             if !material.is_delta() {
                 if let Some((index, pick)) = scene.light_sampler.sample(u_light) {

@@ -28,7 +28,7 @@ const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
 /// The second Sobol dimension (primitive polynomial x + 1): direction numbers
 /// v_k = v_{k-1} ⊕ (v_{k-1} >> 1), v_0 = 2^31. The value is linear over GF(2) in the bits
 /// of `i`, so it is the XOR of one table entry per byte of `i`.
-#[inline]
+#[cfg(test)]
 fn sobol_dim1(i: u32) -> u32 {
     let t = &SOBOL_DIM1_BYTES;
     if i < 256 {
@@ -41,7 +41,33 @@ fn sobol_dim1(i: u32) -> u32 {
 }
 
 /// `SOBOL_DIM1_BYTES[b][x]`: the second dimension's value of `x << (8 b)`.
+#[cfg(test)]
 static SOBOL_DIM1_BYTES: [[u32; 256]; 4] = sobol_dim1_tables();
+
+/// [`sobol_dim1`] with its bits reversed, the form the scramble takes: reversal is linear
+/// over GF(2) too, so this is the XOR of reversed table entries.
+#[inline]
+fn sobol_dim1_reversed(i: u32) -> u32 {
+    let t = &SOBOL_DIM1_REVERSED_BYTES;
+    t[0][(i & 0xff) as usize]
+        ^ t[1][((i >> 8) & 0xff) as usize]
+        ^ t[2][((i >> 16) & 0xff) as usize]
+        ^ t[3][(i >> 24) as usize]
+}
+
+static SOBOL_DIM1_REVERSED_BYTES: [[u32; 256]; 4] = {
+    let mut t = sobol_dim1_tables();
+    let mut b = 0;
+    while b < 4 {
+        let mut x = 0;
+        while x < 256 {
+            t[b][x] = t[b][x].reverse_bits();
+            x += 1;
+        }
+        b += 1;
+    }
+    t
+};
 
 /// The second Sobol dimension by its definition, one bit of `i` at a time.
 const fn sobol_dim1_bitwise(mut i: u32) -> u32 {
@@ -72,9 +98,15 @@ const fn sobol_dim1_tables() -> [[u32; 256]; 4] {
 }
 
 /// Burley's hash-based Owen scramble of a 32-bit fixed-point value.
-#[inline]
+#[cfg(test)]
 fn owen_scramble(v: u32, seed: u32) -> u32 {
-    let mut x = v.reverse_bits();
+    owen_scramble_reversed(v.reverse_bits(), seed)
+}
+
+/// [`owen_scramble`] of the value whose bits, reversed, are `x` (the van der Corput
+/// value of `i` is `i` reversed, so its scramble starts from `i` itself).
+#[inline]
+fn owen_scramble_reversed(mut x: u32, seed: u32) -> u32 {
     x = x.wrapping_add(seed);
     x ^= x.wrapping_mul(0x6c50_b47c);
     x ^= x.wrapping_mul(0xb82f_1e52);
@@ -172,7 +204,7 @@ impl SobolSampler {
     pub fn next_1d(&mut self) -> f32 {
         let h = self.hashes();
         let i = self.permuted_index(h);
-        to_unit(owen_scramble(i.reverse_bits(), (h >> 32) as u32))
+        to_unit(owen_scramble_reversed(i, (h >> 32) as u32))
     }
 
     #[inline]
@@ -181,8 +213,8 @@ impl SobolSampler {
         let i = self.permuted_index(h);
         let h2 = mix_bits(h);
         Vec2::new(
-            to_unit(owen_scramble(i.reverse_bits(), (h >> 32) as u32)),
-            to_unit(owen_scramble(sobol_dim1(i), h2 as u32)),
+            to_unit(owen_scramble_reversed(i, (h >> 32) as u32)),
+            to_unit(owen_scramble_reversed(sobol_dim1_reversed(i), h2 as u32)),
         )
     }
 }
@@ -190,6 +222,24 @@ impl SobolSampler {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn reversed_forms_equal_the_definitions() {
+        let mut rng = crate::sampling::Pcg32::new(5, 7);
+        for k in 0..10_000u32 {
+            let i = if k < 4096 { k } else { rng.next_u32() };
+            let seed = rng.next_u32();
+            assert_eq!(sobol_dim1_reversed(i), sobol_dim1(i).reverse_bits(), "{i}");
+            assert_eq!(
+                owen_scramble_reversed(sobol_dim1_reversed(i), seed),
+                owen_scramble(sobol_dim1(i), seed)
+            );
+            assert_eq!(
+                owen_scramble_reversed(i, seed),
+                owen_scramble(i.reverse_bits(), seed)
+            );
+        }
+    }
 
     #[test]
     fn dim1_tables_equal_the_definition() {
