@@ -61,9 +61,11 @@ impl WatertightRay {
         } else {
             2
         };
-        let kx = (kz + 1) % 3;
-        let ky = (kx + 1) % 3;
-        let (dx, dy, dz) = (d[kx], d[ky], d[kz]);
+        let kx = if kz == 2 { 0 } else { kz + 1 };
+        let ky = if kx == 2 { 0 } else { kx + 1 };
+        // Indexing an array, not the vector (whose index is a three-way branch).
+        let da = d.to_array();
+        let (dx, dy, dz) = (da[kx], da[ky], da[kz]);
         WatertightRay {
             origin: ray.origin,
             kx,
@@ -352,15 +354,17 @@ impl TriangleMesh {
     /// Closest hit through the mesh's BVH.
     #[inline]
     pub fn intersect(&self, ray: &Ray, stats: &mut RayStats) -> Option<ShapeHit> {
-        let wr = WatertightRay::new(ray);
-        let mut best = None;
         if let Some(order) = self.accel.leaf_order().filter(|_| !self.blocks.is_empty()) {
+            // The watertight test's constants are set up at the first leaf, so rays that
+            // reach none (most of those that miss) never pay for them.
+            let mut lazy_wr = None;
             // The closest hit as (t, leaf position, barycentrics); the triangle's index is
             // looked up once at the end, its cache line prefetched when the hit is found.
             let mut closest: Option<(f32, usize, Vec2)> = None;
             let prefetch = |first| self.prefetch_block(first);
             self.accel
                 .intersect_leaves(ray, stats, prefetch, |first, count, t_max| {
+                    let wr = &*lazy_wr.get_or_insert_with(|| WatertightRay::new(ray));
                     let mut found = false;
                     let mut b = first as usize / BLOCK;
                     let end = (first + count).div_ceil(BLOCK as u32) as usize;
@@ -372,7 +376,7 @@ impl TriangleMesh {
                             intersect_pair_avx2(
                                 &self.blocks[b],
                                 &self.blocks[b + 1],
-                                &wr,
+                                wr,
                                 ray.t_min,
                                 *t_max,
                             )
@@ -381,7 +385,7 @@ impl TriangleMesh {
                         b += 2;
                     }
                     while b < end {
-                        let hits = self.blocks[b].intersect(&wr, ray.t_min, *t_max);
+                        let hits = self.blocks[b].intersect(wr, ray.t_min, *t_max);
                         found |= take_nearest(b, hits, order, t_max, &mut closest);
                         b += 1;
                     }
@@ -393,6 +397,8 @@ impl TriangleMesh {
                 uv,
             });
         }
+        let wr = WatertightRay::new(ray);
+        let mut best = None;
         self.accel.intersect(ray, stats, |prim, t_max| {
             let (p0, p1, p2) = self.vertices(prim);
             match intersect_triangle_watertight(&wr, ray.t_min, *t_max, p0, p1, p2) {
@@ -414,26 +420,28 @@ impl TriangleMesh {
     /// Any hit through the mesh's BVH.
     #[inline]
     pub fn occluded(&self, ray: &Ray, stats: &mut RayStats) -> bool {
-        let wr = WatertightRay::new(ray);
         if !self.blocks.is_empty() {
             let prefetch = |first| self.prefetch_block(first);
+            let mut lazy_wr = None;
             return self
                 .accel
                 .occluded_leaves(ray, stats, prefetch, |first, count| {
+                    let wr = &*lazy_wr.get_or_insert_with(|| WatertightRay::new(ray));
                     let mut b = first as usize / BLOCK;
                     let end = (first + count).div_ceil(BLOCK as u32) as usize;
                     #[cfg(target_arch = "x86_64")]
                     while self.avx2 && b + 1 < end {
                         let (x, y) = (&self.blocks[b], &self.blocks[b + 1]);
                         // SAFETY: `avx2` is set only where the processor supports AVX2.
-                        if unsafe { intersect_pair_avx2(x, y, &wr, ray.t_min, ray.t_max) }.0 != 0 {
+                        if unsafe { intersect_pair_avx2(x, y, wr, ray.t_min, ray.t_max) }.0 != 0 {
                             return true;
                         }
                         b += 2;
                     }
-                    (b..end).any(|b| self.blocks[b].intersect(&wr, ray.t_min, ray.t_max).0 != 0)
+                    (b..end).any(|b| self.blocks[b].intersect(wr, ray.t_min, ray.t_max).0 != 0)
                 });
         }
+        let wr = WatertightRay::new(ray);
         self.accel.occluded(ray, stats, |prim| {
             let (p0, p1, p2) = self.vertices(prim);
             intersect_triangle_watertight(&wr, ray.t_min, ray.t_max, p0, p1, p2).is_some()
