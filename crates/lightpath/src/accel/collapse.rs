@@ -13,6 +13,7 @@
 
 use super::bvh::Bvh;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
 /// Leaves start at multiples of this and are padded to it.
 pub const LEAF_ALIGN: usize = 4;
@@ -105,10 +106,11 @@ pub fn collapse<const W: usize>(bvh: &Bvh) -> Collapsed<W> {
     if bvh.nodes.is_empty() || bvh.prim_indices.is_empty() {
         return out;
     }
-    out.root = match as_leaf(bvh, 0) {
+    let spans = leaf_spans(bvh);
+    out.root = match as_leaf(bvh, &spans, 0) {
         Some(leaf) => leaf,
         None => {
-            out.nodes = collapse_parallel(bvh, 0, 0);
+            out.nodes = collapse_parallel(bvh, &spans, 0, 0);
             (0, 0)
         }
     };
@@ -125,53 +127,88 @@ struct Candidate {
     area: f32,
 }
 
-/// The leaf range of binary node `s` if it becomes a leaf: a binary leaf, or a subtree
-/// of at most [`MERGE_LIMIT`] primitives that are contiguous. Looks at no more than
-/// about `2 * MERGE_LIMIT` nodes.
-fn as_leaf(bvh: &Bvh, s: u32) -> Option<(u32, u32)> {
+/// Binary node `s`'s leaf range if it becomes a leaf, from [`leaf_spans`]: a binary
+/// leaf, or a subtree of at most [`MERGE_LIMIT`] primitives that are contiguous.
+fn as_leaf(bvh: &Bvh, spans: &[AtomicU64], s: u32) -> Option<(u32, u32)> {
     let n = &bvh.nodes[s as usize];
     if n.is_leaf() {
         return Some((n.left_or_first, n.count));
     }
-    let mut stack = [0u32; 2 * MERGE_LIMIT + 2];
-    let (mut sp, mut total, mut lo, mut hi) = (1usize, 0u32, u32::MAX, 0u32);
-    stack[0] = s;
-    while sp > 0 {
-        sp -= 1;
-        let n = &bvh.nodes[stack[sp] as usize];
-        if n.is_leaf() {
-            total += n.count;
-            if total as usize > MERGE_LIMIT {
-                return None;
-            }
-            lo = lo.min(n.left_or_first);
-            hi = hi.max(n.left_or_first + n.count);
-        } else {
-            if sp + 2 > stack.len() {
-                return None;
-            }
-            stack[sp] = n.left_or_first;
-            stack[sp + 1] = n.left_or_first + 1;
-            sp += 2;
-        }
-    }
-    (hi - lo == total).then_some((lo, total))
+    let span = spans[s as usize].load(Relaxed);
+    (span != NOT_A_LEAF && span >> 8 & 0xff == span & 0xff)
+        .then_some(((span >> 16) as u32, (span & 0xff) as u32))
 }
 
-fn candidate(bvh: &Bvh, s: u32) -> Candidate {
+/// A span for a subtree that cannot become a leaf.
+const NOT_A_LEAF: u64 = u64::MAX;
+
+/// Subtrees this high are summarised by parallel tasks.
+const SPAN_TASK_LEVELS: usize = 4;
+
+/// For every binary node, what [`as_leaf`] needs, in one pass from the leaves up: the
+/// lowest primitive position `lo` of its subtree, the extent `hi − lo` of its positions
+/// and its primitive count, packed as `lo << 16 | extent << 8 | count` (it is a leaf
+/// range when the extent equals the count), or [`NOT_A_LEAF`] once either passes
+/// [`MERGE_LIMIT`] (neither shrinks towards the root). A binary leaf always has its
+/// range, whatever its size.
+fn leaf_spans(bvh: &Bvh) -> Vec<AtomicU64> {
+    let spans: Vec<AtomicU64> = (0..bvh.nodes.len()).map(|_| AtomicU64::new(0)).collect();
+    fill_spans(bvh, &spans, 0, 0);
+    spans
+}
+
+fn fill_spans(bvh: &Bvh, spans: &[AtomicU64], s: u32, level: usize) -> u64 {
+    let n = &bvh.nodes[s as usize];
+    let span = if n.is_leaf() {
+        let count = u64::from(n.count);
+        u64::from(n.left_or_first) << 16 | count.min(0xff) << 8 | count.min(0xff)
+    } else {
+        let (l, r) = (n.left_or_first, n.left_or_first + 1);
+        let (a, b) = if level < SPAN_TASK_LEVELS {
+            rayon::join(
+                || fill_spans(bvh, spans, l, level + 1),
+                || fill_spans(bvh, spans, r, level + 1),
+            )
+        } else {
+            (
+                fill_spans(bvh, spans, l, level + 1),
+                fill_spans(bvh, spans, r, level + 1),
+            )
+        };
+        merge_spans(a, b)
+    };
+    spans[s as usize].store(span, Relaxed);
+    span
+}
+
+/// The span of a subtree from its two children's.
+fn merge_spans(a: u64, b: u64) -> u64 {
+    if a == NOT_A_LEAF || b == NOT_A_LEAF {
+        return NOT_A_LEAF;
+    }
+    let unpack = |x: u64| (x >> 16, (x >> 16) + (x >> 8 & 0xff), x & 0xff);
+    let ((alo, ahi, ac), (blo, bhi, bc)) = (unpack(a), unpack(b));
+    let (lo, hi, count) = (alo.min(blo), ahi.max(bhi), ac + bc);
+    if count > MERGE_LIMIT as u64 || hi - lo > MERGE_LIMIT as u64 {
+        return NOT_A_LEAF;
+    }
+    lo << 16 | (hi - lo) << 8 | count
+}
+
+fn candidate(bvh: &Bvh, spans: &[AtomicU64], s: u32) -> Candidate {
     Candidate {
         node: s,
-        leaf: as_leaf(bvh, s),
+        leaf: as_leaf(bvh, spans, s),
         area: bvh.nodes[s as usize].bounds().surface_area(),
     }
 }
 
 /// The up-to-`W` descendants of binary inner node `node` that become the slots of its
 /// wide node.
-fn choose<const W: usize>(bvh: &Bvh, node: u32) -> ([Candidate; W], usize) {
+fn choose<const W: usize>(bvh: &Bvh, spans: &[AtomicU64], node: u32) -> ([Candidate; W], usize) {
     let first = bvh.nodes[node as usize].left_or_first;
-    let mut slots = [candidate(bvh, first); W];
-    slots[1] = candidate(bvh, first + 1);
+    let mut slots = [candidate(bvh, spans, first); W];
+    slots[1] = candidate(bvh, spans, first + 1);
     let mut len = 2;
     while len < W {
         // Open the inner child with the largest surface area; when every child is a
@@ -189,8 +226,8 @@ fn choose<const W: usize>(bvh: &Bvh, node: u32) -> ([Candidate; W], usize) {
         });
         let Some(i) = best else { break };
         let c = bvh.nodes[slots[i].node as usize].left_or_first;
-        slots[i] = candidate(bvh, c);
-        slots[len] = candidate(bvh, c + 1);
+        slots[i] = candidate(bvh, spans, c);
+        slots[len] = candidate(bvh, spans, c + 1);
         len += 1;
     }
     (slots, len)
@@ -198,8 +235,8 @@ fn choose<const W: usize>(bvh: &Bvh, node: u32) -> ([Candidate; W], usize) {
 
 /// The wide node for binary inner node `node`, with its inner children still to be
 /// placed: their slots get `child` = the binary node and `count` 0.
-fn wide_node<const W: usize>(bvh: &Bvh, node: u32) -> ([Slot; W], usize) {
-    let (slots, len) = choose::<W>(bvh, node);
+fn wide_node<const W: usize>(bvh: &Bvh, spans: &[AtomicU64], node: u32) -> ([Slot; W], usize) {
+    let (slots, len) = choose::<W>(bvh, spans, node);
     let mut wide = [UNUSED; W];
     for (k, c) in slots[..len].iter().enumerate() {
         let b = &bvh.nodes[c.node as usize];
@@ -216,17 +253,22 @@ fn wide_node<const W: usize>(bvh: &Bvh, node: u32) -> ([Slot; W], usize) {
 
 /// The wide subtree under binary inner node `node`, its root first; the top levels
 /// are collapsed in parallel and concatenated in slot order.
-fn collapse_parallel<const W: usize>(bvh: &Bvh, node: u32, level: usize) -> Vec<[Slot; W]> {
+fn collapse_parallel<const W: usize>(
+    bvh: &Bvh,
+    spans: &[AtomicU64],
+    node: u32,
+    level: usize,
+) -> Vec<[Slot; W]> {
     if level >= PARALLEL_LEVELS {
         let mut nodes = vec![[UNUSED; W]];
-        fill(bvh, &mut nodes, node, 0);
+        fill(bvh, spans, &mut nodes, node, 0);
         return nodes;
     }
-    let (mut wide, len) = wide_node::<W>(bvh, node);
+    let (mut wide, len) = wide_node::<W>(bvh, spans, node);
     let inner: Vec<usize> = (0..len).filter(|&k| wide[k].count == 0).collect();
     let subtrees: Vec<Vec<[Slot; W]>> = inner
         .par_iter()
-        .map(|&k| collapse_parallel::<W>(bvh, wide[k].child, level + 1))
+        .map(|&k| collapse_parallel::<W>(bvh, spans, wide[k].child, level + 1))
         .collect();
     let mut nodes = vec![[UNUSED; W]];
     for (&k, mut sub) in inner.iter().zip(subtrees) {
@@ -246,8 +288,14 @@ fn collapse_parallel<const W: usize>(bvh: &Bvh, node: u32, level: usize) -> Vec<
 }
 
 /// Fills wide node `at` from the binary inner node `node`, appending its descendants.
-fn fill<const W: usize>(bvh: &Bvh, nodes: &mut Vec<[Slot; W]>, node: u32, at: usize) {
-    let (mut wide, len) = wide_node::<W>(bvh, node);
+fn fill<const W: usize>(
+    bvh: &Bvh,
+    spans: &[AtomicU64],
+    nodes: &mut Vec<[Slot; W]>,
+    node: u32,
+    at: usize,
+) {
+    let (mut wide, len) = wide_node::<W>(bvh, spans, node);
     let mut inner = [(0u32, 0usize); W];
     let mut n_inner = 0;
     for slot in wide[..len].iter_mut() {
@@ -261,7 +309,7 @@ fn fill<const W: usize>(bvh: &Bvh, nodes: &mut Vec<[Slot; W]>, node: u32, at: us
     }
     nodes[at] = wide;
     for &(s, index) in &inner[..n_inner] {
-        fill(bvh, nodes, s, index);
+        fill(bvh, spans, nodes, s, index);
     }
 }
 
@@ -334,4 +382,69 @@ pub fn wide_cover(
             .filter_map(|&(n, k)| slot(n, k).map(|s| s.0))
             .collect(),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::bvh::BuildSettings;
+    use crate::accel::testing::{boxes, degenerate_soup, lattice_mesh, random_soup};
+
+    /// The leaf range of a subtree found by walking all of it.
+    fn as_leaf_by_walking(bvh: &Bvh, s: u32) -> Option<(u32, u32)> {
+        let n = &bvh.nodes[s as usize];
+        if n.is_leaf() {
+            return Some((n.left_or_first, n.count));
+        }
+        let (mut stack, mut total, mut lo, mut hi) = (vec![s], 0u32, u32::MAX, 0u32);
+        while let Some(i) = stack.pop() {
+            let n = &bvh.nodes[i as usize];
+            if n.is_leaf() {
+                total += n.count;
+                lo = lo.min(n.left_or_first);
+                hi = hi.max(n.left_or_first + n.count);
+            } else {
+                stack.extend([n.left_or_first, n.left_or_first + 1]);
+            }
+        }
+        (total as usize <= MERGE_LIMIT && hi - lo == total).then_some((lo, total))
+    }
+
+    /// Every binary node's span gives what walking its subtree gives, for trees from the
+    /// wide builds and from the other presets (whose leaves and, after reinsertion,
+    /// primitive ranges are arranged differently).
+    #[test]
+    fn spans_equal_walking_the_subtree() {
+        let meshes = [
+            random_soup(3000, 1),
+            degenerate_soup(500, 2),
+            lattice_mesh(20, true),
+        ];
+        for tris in &meshes {
+            let b = boxes(tris);
+            for settings in [
+                BuildSettings {
+                    always_leaf: LEAF_ALIGN,
+                    ..BuildSettings::QUALITY
+                },
+                BuildSettings::HIGH,
+                BuildSettings::COURSE,
+            ] {
+                let bvh = Bvh::build(&b, &settings);
+                let spans = leaf_spans(&bvh);
+                let mut leaves = 0;
+                let mut reachable = vec![0u32];
+                while let Some(s) = reachable.pop() {
+                    let expected = as_leaf_by_walking(&bvh, s);
+                    assert_eq!(as_leaf(&bvh, &spans, s), expected, "node {s}");
+                    leaves += usize::from(expected.is_some());
+                    let n = &bvh.nodes[s as usize];
+                    if !n.is_leaf() {
+                        reachable.extend([n.left_or_first, n.left_or_first + 1]);
+                    }
+                }
+                assert!(leaves > 0);
+            }
+        }
+    }
 }
