@@ -313,29 +313,58 @@ fn fill<const W: usize>(
     }
 }
 
-/// Moves every leaf to an aligned, padded position (see the module docs).
+/// Moves every leaf to an aligned, padded position (see the module docs): the leaves in
+/// node and slot order, each node's share of the order found first so that the nodes
+/// are filled in parallel.
 fn align_leaves<const W: usize>(tree: &mut Collapsed<W>, prims: &[u32]) {
-    let mut order = Vec::with_capacity(prims.len() + prims.len() / 2);
-    let place = |first: u32, count: u32, order: &mut Vec<u32>| -> u32 {
-        let at = order.len() as u32;
+    let padded = |count: u32| (count as usize).div_ceil(LEAF_ALIGN) * LEAF_ALIGN;
+    let is_leaf = |slot: &Slot| slot.count != EMPTY && slot.count > 0;
+    // Writes a leaf's primitives and its padding (the last primitive repeated) to `out`.
+    let place = |first: u32, count: u32, out: &mut [u32]| {
         let leaf = &prims[first as usize..(first + count) as usize];
-        order.extend_from_slice(leaf);
+        out[..leaf.len()].copy_from_slice(leaf);
         let last = *leaf.last().expect("leaves are not empty");
-        while order.len() % LEAF_ALIGN != 0 {
-            order.push(last);
-        }
-        at
+        out[leaf.len()..].fill(last);
     };
     if tree.nodes.is_empty() {
-        tree.root.0 = place(tree.root.0, tree.root.1, &mut order);
+        let (first, count) = tree.root;
+        let mut order = vec![0; padded(count)];
+        place(first, count, &mut order);
+        tree.root.0 = 0;
+        tree.prim_order = order;
+        return;
     }
-    for node in &mut tree.nodes {
-        for slot in node.iter_mut() {
-            if slot.count != EMPTY && slot.count > 0 {
-                slot.child = place(slot.child, slot.count, &mut order);
+    let sizes: Vec<usize> = tree
+        .nodes
+        .par_iter()
+        .map(|node| {
+            node.iter()
+                .filter(|s| is_leaf(s))
+                .map(|s| padded(s.count))
+                .sum()
+        })
+        .collect();
+    let mut order = vec![0u32; sizes.iter().sum()];
+    let mut parts = Vec::with_capacity(sizes.len());
+    let (mut rest, mut base) = (order.as_mut_slice(), 0usize);
+    for &size in &sizes {
+        let (part, tail) = rest.split_at_mut(size);
+        parts.push((base, part));
+        rest = tail;
+        base += size;
+    }
+    tree.nodes
+        .par_iter_mut()
+        .zip(parts)
+        .for_each(|(node, (base, part))| {
+            let mut at = 0;
+            for slot in node.iter_mut().filter(|s| is_leaf(s)) {
+                let size = padded(slot.count);
+                place(slot.child, slot.count, &mut part[at..at + size]);
+                slot.child = (base + at) as u32;
+                at += size;
             }
-        }
-    }
+        });
     tree.prim_order = order;
 }
 
