@@ -110,7 +110,7 @@ pub fn collapse<const W: usize>(bvh: &Bvh) -> Collapsed<W> {
     out.root = match as_leaf(bvh, &spans, 0) {
         Some(leaf) => leaf,
         None => {
-            out.nodes = collapse_parallel(bvh, &spans, 0, 0);
+            out.nodes = concatenate(collapse_parallel(bvh, &spans, 0, 0));
             (0, 0)
         }
     };
@@ -251,40 +251,74 @@ fn wide_node<const W: usize>(bvh: &Bvh, spans: &[AtomicU64], node: u32) -> ([Slo
     (wide, len)
 }
 
-/// The wide subtree under binary inner node `node`, its root first; the top levels
-/// are collapsed in parallel and concatenated in slot order.
+/// The wide subtree under binary inner node `node`, its root first, as consecutive
+/// pieces: the top levels are collapsed in parallel. Each piece's inner child indices
+/// are relative to its `shift`, a position in the subtree (see [`concatenate`]).
 fn collapse_parallel<const W: usize>(
     bvh: &Bvh,
     spans: &[AtomicU64],
     node: u32,
     level: usize,
-) -> Vec<[Slot; W]> {
+) -> Vec<Piece<W>> {
     if level >= PARALLEL_LEVELS {
         let mut nodes = vec![[UNUSED; W]];
         fill(bvh, spans, &mut nodes, node, 0);
-        return nodes;
+        return vec![Piece { nodes, shift: 0 }];
     }
     let (mut wide, len) = wide_node::<W>(bvh, spans, node);
     let inner: Vec<usize> = (0..len).filter(|&k| wide[k].count == 0).collect();
-    let subtrees: Vec<Vec<[Slot; W]>> = inner
+    let subtrees: Vec<Vec<Piece<W>>> = inner
         .par_iter()
         .map(|&k| collapse_parallel::<W>(bvh, spans, wide[k].child, level + 1))
         .collect();
-    let mut nodes = vec![[UNUSED; W]];
-    for (&k, mut sub) in inner.iter().zip(subtrees) {
-        let offset = nodes.len() as u32;
-        wide[k].child = offset;
-        for n in &mut sub {
-            for slot in n.iter_mut() {
-                if slot.count == 0 {
-                    slot.child += offset;
-                }
+    // The root here, then each child's subtree, its pieces shifted to where it starts.
+    let mut pieces = Vec::with_capacity(1 + subtrees.iter().map(Vec::len).sum::<usize>());
+    let mut at = 1u32;
+    for (&k, sub) in inner.iter().zip(subtrees) {
+        let start = at;
+        wide[k].child = start;
+        for mut piece in sub {
+            piece.shift += start;
+            at += piece.nodes.len() as u32;
+            pieces.push(piece);
+        }
+    }
+    pieces.insert(
+        0,
+        Piece {
+            nodes: vec![wide],
+            shift: 0,
+        },
+    );
+    pieces
+}
+
+/// Consecutive wide nodes of a collapsed tree whose inner child indices are relative to
+/// `shift`.
+struct Piece<const W: usize> {
+    nodes: Vec<[Slot; W]>,
+    shift: u32,
+}
+
+/// The pieces as one array, copied in parallel, with their indices made absolute.
+fn concatenate<const W: usize>(pieces: Vec<Piece<W>>) -> Vec<[Slot; W]> {
+    let mut out = vec![[UNUSED; W]; pieces.iter().map(|p| p.nodes.len()).sum()];
+    let mut parts = Vec::with_capacity(pieces.len());
+    let mut rest = out.as_mut_slice();
+    for piece in &pieces {
+        let (part, tail) = rest.split_at_mut(piece.nodes.len());
+        parts.push(part);
+        rest = tail;
+    }
+    pieces.par_iter().zip(parts).for_each(|(piece, part)| {
+        for (dst, src) in part.iter_mut().zip(&piece.nodes) {
+            *dst = *src;
+            for slot in dst.iter_mut().filter(|s| s.count == 0) {
+                slot.child += piece.shift;
             }
         }
-        nodes.append(&mut sub);
-    }
-    nodes[0] = wide;
-    nodes
+    });
+    out
 }
 
 /// Fills wide node `at` from the binary inner node `node`, appending its descendants.
