@@ -12,9 +12,9 @@
 //!   binned in parallel, in fixed chunks whose bins are merged (exact: a minimum, a
 //!   maximum and a count).
 //! - **Small ranges** (at most `BuildSettings::sweep_size` primitives, most nodes of a
-//!   tree) skip the bins: their centroids are sorted along each axis and every split
-//!   between neighbours is evaluated, which costs less than clearing and sweeping the
-//!   bins and finds splits at least as good.
+//!   tree) skip the bins: their centroids are sorted along each axis (by counting ranks,
+//!   without branches on the data) and every split between neighbours is evaluated, which
+//!   costs less than clearing and sweeping the bins and finds splits at least as good.
 //! - **Partition.** In place, from both ends, by the same bin computation as the binning
 //!   (so the two sides have exactly the counts the SAH evaluated), accumulating both
 //!   children's boxes and centroid boxes on the way: no node ever makes a pass of its own

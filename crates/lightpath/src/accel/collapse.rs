@@ -6,10 +6,14 @@
 //! becomes one leaf, whose primitives are tested together as SIMD blocks: that costs
 //! less than visiting its nodes, and saves the memory of nodes with two small leaves.
 //! Where a node still has free slots once no inner child is left, such leaves of more
-//! than one block are opened into their halves. Leaves are then moved to positions that are multiples of [`LEAF_ALIGN`]
-//! and padded to a multiple of it by repeating their last primitive, so that a
-//! primitive owner can keep its data in blocks that match the leaves
+//! than one block are opened into their halves. Leaves are then moved to positions that
+//! are multiples of [`LEAF_ALIGN`] and padded to a multiple of it by repeating their last
+//! primitive, so that a primitive owner can keep its data in blocks that match the leaves
 //! ([`crate::geometry::TriangleBlock`]); leaves keep their true counts.
+//!
+//! Whether a subtree can become a leaf is read from a table filled in one parallel pass
+//! from the leaves up ([`leaf_spans`]); the top levels of the wide tree are built in
+//! parallel and concatenated once, and the leaves are placed in parallel.
 
 use super::bvh::Bvh;
 use rayon::prelude::*;
