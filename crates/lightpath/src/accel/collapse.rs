@@ -307,13 +307,7 @@ struct Piece<const W: usize> {
 /// The pieces as one array, copied in parallel, with their indices made absolute.
 fn concatenate<const W: usize>(pieces: Vec<Piece<W>>) -> Vec<[Slot; W]> {
     let mut out = vec![[UNUSED; W]; pieces.iter().map(|p| p.nodes.len()).sum()];
-    let mut parts = Vec::with_capacity(pieces.len());
-    let mut rest = out.as_mut_slice();
-    for piece in &pieces {
-        let (part, tail) = rest.split_at_mut(piece.nodes.len());
-        parts.push(part);
-        rest = tail;
-    }
+    let parts = split_into(&mut out, pieces.iter().map(|p| p.nodes.len()));
     pieces.par_iter().zip(parts).for_each(|(piece, part)| {
         for (dst, src) in part.iter_mut().zip(&piece.nodes) {
             *dst = *src;
@@ -351,6 +345,17 @@ fn fill<const W: usize>(
     }
 }
 
+/// `slice` cut into consecutive parts of the given lengths (which must not exceed it).
+fn split_into<T>(mut slice: &mut [T], lens: impl Iterator<Item = usize>) -> Vec<&mut [T]> {
+    let mut parts = Vec::with_capacity(lens.size_hint().0);
+    for len in lens {
+        let (part, rest) = std::mem::take(&mut slice).split_at_mut(len);
+        parts.push(part);
+        slice = rest;
+    }
+    parts
+}
+
 /// Moves every leaf to an aligned, padded position (see the module docs): the leaves in
 /// node and slot order, each node's share of the order found first so that the nodes
 /// are filled in parallel.
@@ -383,14 +388,13 @@ fn align_leaves<const W: usize>(tree: &mut Collapsed<W>, prims: &[u32]) {
         })
         .collect();
     let mut order = vec![0u32; sizes.iter().sum()];
-    let mut parts = Vec::with_capacity(sizes.len());
-    let (mut rest, mut base) = (order.as_mut_slice(), 0usize);
-    for &size in &sizes {
-        let (part, tail) = rest.split_at_mut(size);
-        parts.push((base, part));
-        rest = tail;
-        base += size;
-    }
+    let bases = sizes.iter().scan(0, |at, &size| {
+        *at += size;
+        Some(*at - size)
+    });
+    let parts: Vec<(usize, &mut [u32])> = bases
+        .zip(split_into(&mut order, sizes.iter().copied()))
+        .collect();
     tree.nodes
         .par_iter_mut()
         .zip(parts)
