@@ -19,7 +19,12 @@ pub struct SobolSampler {
     pub seed: u64,
     pixel_hash: u64,
     index: u32,
+    /// The first dimension of the next batch.
     dimension: u32,
+    /// Position in the current batch of the next draw (`BATCH`: none left).
+    next: usize,
+    xs: [f32; BATCH],
+    ys: [f32; BATCH],
 }
 
 /// 1 - ε in f32: the largest value below 1.
@@ -46,7 +51,7 @@ static SOBOL_DIM1_BYTES: [[u32; 256]; 4] = sobol_dim1_tables();
 
 /// [`sobol_dim1`] with its bits reversed, the form the scramble takes: reversal is linear
 /// over GF(2) too, so this is the XOR of reversed table entries.
-#[inline]
+#[cfg(test)]
 fn sobol_dim1_reversed(i: u32) -> u32 {
     let t = &SOBOL_DIM1_REVERSED_BYTES;
     t[0][(i & 0xff) as usize]
@@ -55,6 +60,7 @@ fn sobol_dim1_reversed(i: u32) -> u32 {
         ^ t[3][(i >> 24) as usize]
 }
 
+#[cfg(test)]
 static SOBOL_DIM1_REVERSED_BYTES: [[u32; 256]; 4] = {
     let mut t = sobol_dim1_tables();
     let mut b = 0;
@@ -70,6 +76,7 @@ static SOBOL_DIM1_REVERSED_BYTES: [[u32; 256]; 4] = {
 };
 
 /// The second Sobol dimension by its definition, one bit of `i` at a time.
+#[cfg(test)]
 const fn sobol_dim1_bitwise(mut i: u32) -> u32 {
     let mut v = 1u32 << 31;
     let mut x = 0u32;
@@ -83,6 +90,7 @@ const fn sobol_dim1_bitwise(mut i: u32) -> u32 {
     x
 }
 
+#[cfg(test)]
 const fn sobol_dim1_tables() -> [[u32; 256]; 4] {
     let mut t = [[0u32; 256]; 4];
     let mut b = 0;
@@ -117,37 +125,166 @@ fn owen_scramble_reversed(mut x: u32, seed: u32) -> u32 {
 
 /// Element `i` of a pseudo-random permutation of 0..n chosen by `p` (Kensler,
 /// "Correlated Multi-Jittered Sampling", 2013): cycle-walking a hashed bijection.
-#[inline]
+#[cfg(test)]
 fn permutation_element(mut i: u32, n: u32, p: u32) -> u32 {
+    let w = bit_mask(n);
+    loop {
+        i = permutation_round(i, w, p);
+        if i < n {
+            break;
+        }
+    }
+    finish_permutation(i, n, p)
+}
+
+#[inline]
+fn to_unit(x: u32) -> f32 {
+    (x as f32 * (1.0 / 4_294_967_296.0)).min(ONE_MINUS_EPSILON)
+}
+
+/// Bit `j` of the second dimension's value, reversed, is the parity of the bits of `i` at
+/// the positions `k ⊇ j` (its generator matrix is Pascal's triangle mod 2, and by Lucas's
+/// theorem `C(k, j)` is odd exactly when `j ⊆ k`): a superset-sum transform in five
+/// shift-and-XOR steps, which vectorises where [`sobol_dim1_reversed`]'s tables do not.
+#[inline(always)]
+fn sobol_dim1_reversed_alu(i: u32) -> u32 {
+    let mut y = i;
+    y ^= (y >> 1) & 0x5555_5555;
+    y ^= (y >> 2) & 0x3333_3333;
+    y ^= (y >> 4) & 0x0f0f_0f0f;
+    y ^= (y >> 8) & 0x00ff_00ff;
+    y ^= (y >> 16) & 0x0000_ffff;
+    y
+}
+
+/// One round of [`permutation_element`]'s cycle walk, for the mask `w` of `n`'s bits.
+#[inline(always)]
+fn permutation_round(mut i: u32, w: u32, p: u32) -> u32 {
+    i ^= p;
+    i = i.wrapping_mul(0xe170_893d);
+    i ^= p >> 16;
+    i ^= (i & w) >> 4;
+    i ^= p >> 8;
+    i = i.wrapping_mul(0x0929_eb3f);
+    i ^= p >> 23;
+    i ^= (i & w) >> 1;
+    i = i.wrapping_mul(1 | p >> 27);
+    i = i.wrapping_mul(0x6935_fa69);
+    i ^= (i & w) >> 11;
+    i = i.wrapping_mul(0x74dc_b303);
+    i ^= (i & w) >> 2;
+    i = i.wrapping_mul(0x9e50_1cc3);
+    i ^= (i & w) >> 2;
+    i = i.wrapping_mul(0xc860_a3df);
+    i &= w;
+    i ^= i >> 5;
+    i
+}
+
+/// Draws computed together: the sampler fills this many dimensions at once.
+const BATCH: usize = 8;
+
+/// The points of dimensions `dim0 .. dim0 + BATCH` of sample `index` (out of `n`) for the
+/// pixel hashed to `pixel_hash`, as x and y coordinates: the same values as the scalar
+/// definition ([`SobolSampler::point`]), written as straight-line loops over the lanes so
+/// that the compiler computes the lanes together in vector registers.
+#[inline(always)]
+fn fill_lanes(
+    pixel_hash: u64,
+    dim0: u32,
+    index: u32,
+    n: u32,
+    xs: &mut [f32; BATCH],
+    ys: &mut [f32; BATCH],
+) {
+    let mut h = [0u64; BATCH];
+    for (k, h) in h.iter_mut().enumerate() {
+        *h = dimension_hash(pixel_hash, dim0 + k as u32);
+    }
+    let mut idx = [index; BATCH];
+    if index < n {
+        let w = bit_mask(n);
+        for k in 0..BATCH {
+            idx[k] = permutation_round(index, w, h[k] as u32);
+        }
+        // Cycle walking: only counts that are not powers of two ever take a second round.
+        if idx.iter().fold(false, |any, &i| any | (i >= n)) {
+            for k in 0..BATCH {
+                while idx[k] >= n {
+                    idx[k] = permutation_round(idx[k], w, h[k] as u32);
+                }
+            }
+        }
+        if n.is_power_of_two() {
+            for k in 0..BATCH {
+                idx[k] = idx[k].wrapping_add(h[k] as u32) & (n - 1);
+            }
+        } else {
+            for k in 0..BATCH {
+                idx[k] = finish_permutation(idx[k], n, h[k] as u32);
+            }
+        }
+    }
+    for k in 0..BATCH {
+        let i = idx[k];
+        xs[k] = to_unit(owen_scramble_reversed(i, (h[k] >> 32) as u32));
+        ys[k] = to_unit(owen_scramble_reversed(
+            sobol_dim1_reversed_alu(i),
+            mix_bits(h[k]) as u32,
+        ));
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn fill_lanes_avx2(
+    pixel_hash: u64,
+    dim0: u32,
+    index: u32,
+    n: u32,
+    xs: &mut [f32; BATCH],
+    ys: &mut [f32; BATCH],
+) {
+    fill_lanes(pixel_hash, dim0, index, n, xs, ys)
+}
+
+/// [`fill_lanes`] where the processor multiplies 64-bit lanes natively (AVX-512DQ), as the
+/// two 64-bit hashes per lane want.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,avx512f,avx512dq,avx512vl")]
+unsafe fn fill_lanes_avx512(
+    pixel_hash: u64,
+    dim0: u32,
+    index: u32,
+    n: u32,
+    xs: &mut [f32; BATCH],
+    ys: &mut [f32; BATCH],
+) {
+    fill_lanes(pixel_hash, dim0, index, n, xs, ys)
+}
+
+/// The hash of one dimension of a pixel: seeds of its permutation (low 32 bits) and of the
+/// x scramble (high 32 bits); `mix_bits` of it seeds the y scramble.
+#[inline(always)]
+fn dimension_hash(pixel_hash: u64, dimension: u32) -> u64 {
+    mix_bits(pixel_hash ^ (dimension as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15))
+}
+
+/// All ones up to `n - 1`'s highest bit.
+#[inline(always)]
+fn bit_mask(n: u32) -> u32 {
     let mut w = n - 1;
     w |= w >> 1;
     w |= w >> 2;
     w |= w >> 4;
     w |= w >> 8;
     w |= w >> 16;
-    loop {
-        i ^= p;
-        i = i.wrapping_mul(0xe170_893d);
-        i ^= p >> 16;
-        i ^= (i & w) >> 4;
-        i ^= p >> 8;
-        i = i.wrapping_mul(0x0929_eb3f);
-        i ^= p >> 23;
-        i ^= (i & w) >> 1;
-        i = i.wrapping_mul(1 | p >> 27);
-        i = i.wrapping_mul(0x6935_fa69);
-        i ^= (i & w) >> 11;
-        i = i.wrapping_mul(0x74dc_b303);
-        i ^= (i & w) >> 2;
-        i = i.wrapping_mul(0x9e50_1cc3);
-        i ^= (i & w) >> 2;
-        i = i.wrapping_mul(0xc860_a3df);
-        i &= w;
-        i ^= i >> 5;
-        if i < n {
-            break;
-        }
-    }
+    w
+}
+
+/// The end of [`permutation_element`] after its cycle walk.
+#[inline(always)]
+fn finish_permutation(i: u32, n: u32, p: u32) -> u32 {
     let j = i.wrapping_add(p);
     // The usual sample counts are powers of two: a mask instead of a division.
     if n.is_power_of_two() {
@@ -155,11 +292,6 @@ fn permutation_element(mut i: u32, n: u32, p: u32) -> u32 {
     } else {
         j % n
     }
-}
-
-#[inline]
-fn to_unit(x: u32) -> f32 {
-    (x as f32 * (1.0 / 4_294_967_296.0)).min(ONE_MINUS_EPSILON)
 }
 
 impl SobolSampler {
@@ -170,6 +302,9 @@ impl SobolSampler {
             pixel_hash: 0,
             index: 0,
             dimension: 0,
+            next: BATCH,
+            xs: [0.0; BATCH],
+            ys: [0.0; BATCH],
         }
     }
 
@@ -179,43 +314,84 @@ impl SobolSampler {
             mix_bits(((pixel.x as u64) << 32) ^ pixel.y as u64 ^ mix_bits(self.seed ^ 0x5EED));
         self.index = index;
         self.dimension = 0;
+        self.next = BATCH;
     }
 
-    /// The hash of the current dimension: (permutation seed, scramble seed x, seed y).
-    #[inline]
-    fn hashes(&mut self) -> u64 {
-        let h =
-            mix_bits(self.pixel_hash ^ (self.dimension as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
-        self.dimension += 1;
-        h
-    }
-
-    #[inline]
-    fn permuted_index(&self, h: u64) -> u32 {
-        if self.index < self.samples_per_pixel {
+    /// The 2D point of `dimension` for the current pixel and sample index, by definition
+    /// (one dimension at a time); the sampler draws the same values in batches.
+    #[cfg(test)]
+    fn point(&self, dimension: u32) -> Vec2 {
+        let h = dimension_hash(self.pixel_hash, dimension);
+        let i = if self.index < self.samples_per_pixel {
             permutation_element(self.index, self.samples_per_pixel, h as u32)
         } else {
             // Past the declared count (progressive rendering): no shuffle.
             self.index
-        }
+        };
+        Vec2::new(
+            to_unit(owen_scramble_reversed(i, (h >> 32) as u32)),
+            to_unit(owen_scramble_reversed(
+                sobol_dim1_reversed(i),
+                mix_bits(h) as u32,
+            )),
+        )
     }
 
+    /// The batch position of the next dimension, computing a new batch when the last one
+    /// is used up.
+    #[inline]
+    fn advance(&mut self) -> usize {
+        if self.next == BATCH {
+            self.refill();
+        }
+        let k = self.next;
+        self.next += 1;
+        k
+    }
+
+    #[inline(never)]
+    fn refill(&mut self) {
+        let (h, d, i, n) = (
+            self.pixel_hash,
+            self.dimension,
+            self.index,
+            self.samples_per_pixel,
+        );
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx512dq")
+            && std::arch::is_x86_feature_detected!("avx512vl")
+        {
+            // SAFETY: the processor supports AVX-512 F, DQ and VL (checked just above;
+            // DQ and VL imply F, and every AVX-512 processor has AVX2).
+            unsafe { fill_lanes_avx512(h, d, i, n, &mut self.xs, &mut self.ys) };
+            self.dimension += BATCH as u32;
+            self.next = 0;
+            return;
+        }
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor supports AVX2 (checked just above).
+            unsafe { fill_lanes_avx2(h, d, i, n, &mut self.xs, &mut self.ys) };
+            self.dimension += BATCH as u32;
+            self.next = 0;
+            return;
+        }
+        fill_lanes(h, d, i, n, &mut self.xs, &mut self.ys);
+        self.dimension += BATCH as u32;
+        self.next = 0;
+    }
+
+    /// One dimension: the x coordinate of that dimension's 2D point.
     #[inline]
     pub fn next_1d(&mut self) -> f32 {
-        let h = self.hashes();
-        let i = self.permuted_index(h);
-        to_unit(owen_scramble_reversed(i, (h >> 32) as u32))
+        let k = self.advance();
+        self.xs[k]
     }
 
     #[inline]
     pub fn next_2d(&mut self) -> Vec2 {
-        let h = self.hashes();
-        let i = self.permuted_index(h);
-        let h2 = mix_bits(h);
-        Vec2::new(
-            to_unit(owen_scramble_reversed(i, (h >> 32) as u32)),
-            to_unit(owen_scramble_reversed(sobol_dim1_reversed(i), h2 as u32)),
-        )
+        let k = self.advance();
+        Vec2::new(self.xs[k], self.ys[k])
     }
 }
 
@@ -253,6 +429,79 @@ mod tests {
         }
         for i in 0..4096 {
             assert_eq!(sobol_dim1(i), sobol_dim1_bitwise(i), "{i}");
+        }
+    }
+
+    #[test]
+    fn superset_parity_equals_the_tables() {
+        let mut rng = crate::sampling::Pcg32::new(9, 4);
+        for k in 0..100_000u32 {
+            let i = if k < 65_536 { k } else { rng.next_u32() };
+            assert_eq!(sobol_dim1_reversed_alu(i), sobol_dim1_reversed(i), "{i}");
+        }
+        assert_eq!(
+            sobol_dim1_reversed_alu(u32::MAX),
+            sobol_dim1_reversed(u32::MAX)
+        );
+    }
+
+    /// The batched draws (vector code where the processor has AVX2, the portable loops
+    /// elsewhere) are the definition's values, bit for bit, for 1D and 2D draws in any
+    /// order, counts that are and are not powers of two, and indices past the count.
+    #[test]
+    fn batched_draws_equal_the_definition() {
+        let mut rng = crate::sampling::Pcg32::new(3, 8);
+        for spp in [1u32, 3, 16, 64, 100, 1024] {
+            let mut s = SobolSampler::new(spp, 17);
+            for _ in 0..200 {
+                let pixel = UVec2::new(rng.next_u32() % 512, rng.next_u32() % 512);
+                let index = rng.next_u32() % (spp * 2);
+                s.start_pixel_sample(pixel, index);
+                let mut reference = s.clone();
+                reference.start_pixel_sample(pixel, index);
+                for dim in 0..40 {
+                    let want = reference.point(dim);
+                    if rng.next_u32() % 3 == 0 {
+                        assert_eq!(s.next_1d().to_bits(), want.x.to_bits(), "{spp} {dim}");
+                    } else {
+                        let got = s.next_2d();
+                        assert_eq!(got.x.to_bits(), want.x.to_bits(), "{spp} {dim}");
+                        assert_eq!(got.y.to_bits(), want.y.to_bits(), "{spp} {dim}");
+                    }
+                }
+            }
+        }
+        // Every variant the processor can run, whichever the sampler picks.
+        type Fill = fn(u64, u32, u32, u32, &mut [f32; BATCH], &mut [f32; BATCH]);
+        let mut variants: Vec<(&str, Fill)> = vec![("portable", fill_lanes)];
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: AVX2 is available (checked just above).
+                variants.push(("avx2", |h, d, i, n, xs, ys| unsafe {
+                    fill_lanes_avx2(h, d, i, n, xs, ys)
+                }));
+            }
+            if std::arch::is_x86_feature_detected!("avx512dq")
+                && std::arch::is_x86_feature_detected!("avx512vl")
+            {
+                // SAFETY: AVX-512 F, DQ and VL are available (checked just above).
+                variants.push(("avx512", |h, d, i, n, xs, ys| unsafe {
+                    fill_lanes_avx512(h, d, i, n, xs, ys)
+                }));
+            }
+        }
+        for (name, fill) in variants {
+            for (spp, index) in [(100u32, 77u32), (64, 5), (64, 200), (1, 0)] {
+                let (mut xs, mut ys) = ([0.0; BATCH], [0.0; BATCH]);
+                let mut s = SobolSampler::new(spp, 5);
+                s.start_pixel_sample(UVec2::new(3, 4), index);
+                fill(s.pixel_hash, 8, index, spp, &mut xs, &mut ys);
+                for k in 0..BATCH {
+                    let want = s.point(8 + k as u32);
+                    assert_eq!((xs[k], ys[k]), (want.x, want.y), "{name} {spp} {index}");
+                }
+            }
         }
     }
 
