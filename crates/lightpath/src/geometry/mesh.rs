@@ -312,8 +312,12 @@ impl TriangleMesh {
         if d.is_empty() || area.is_nan() || area <= 0.0 {
             return None;
         }
-        let (_, _, prim) = d.sample_continuous(u_prim);
-        let b = crate::sampling::warp::square_to_uniform_triangle(u);
+        // The triangle is chosen with `u.x`, which is then rescaled for use inside it: a
+        // stratified `u` stays stratified over the whole surface (a quad's two triangles
+        // share the 2D strata instead of taking a random subset each).
+        let _ = u_prim;
+        let (prim, ux) = d.sample_reuse(u.x);
+        let b = crate::sampling::warp::square_to_uniform_triangle(Vec2::new(ux, u.y));
         Some((
             ShapeHit {
                 t: 1.0,

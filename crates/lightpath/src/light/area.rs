@@ -117,6 +117,46 @@ impl FlatMeshEmitter {
     }
 }
 
+/// The sample of light arriving at `p` from the point `q` of an emitter with unit normal
+/// `n`, drawn with area density `area_pdf`; `le(w)` is the radiance leaving `q` in the unit
+/// direction `w`. The solid-angle density is `area_pdf · dist² / cos θ_light`.
+///
+/// Written so that its divisions wait only on the distance's square root, not on each
+/// other (this runs at every path vertex): `1/(area_pdf · dist²)` starts alongside the
+/// root, then `1/dist` and `dist/|n·d|` together.
+#[inline]
+fn towards_area_point(
+    p: Vec3,
+    q: Vec3,
+    n: Vec3,
+    area_pdf: f32,
+    le: impl FnOnce(Vec3) -> Vec3,
+) -> Option<LightSample> {
+    let d = q - p;
+    let dist2 = d.length_squared();
+    let n_dot_d = n.dot(d).abs();
+    if dist2 == 0.0 || n_dot_d == 0.0 {
+        return None;
+    }
+    let area_dist2 = area_pdf * dist2;
+    let inv_area_dist2 = 1.0 / area_dist2;
+    let dist = dist2.sqrt();
+    let inv_dist = 1.0 / dist;
+    let inv_cos_light = dist / n_dot_d;
+    let pdf = area_dist2 * inv_cos_light;
+    if !(pdf > 0.0 && pdf.is_finite()) {
+        return None;
+    }
+    let wi = d * inv_dist;
+    let cos_light = n_dot_d * inv_dist;
+    Some(LightSample {
+        wi,
+        distance: dist,
+        weight: le(-wi) * (cos_light * inv_area_dist2),
+        pdf,
+    })
+}
+
 /// The emitting surface of one instance.
 #[derive(Debug, Clone)]
 pub struct AreaLight {
@@ -214,37 +254,19 @@ impl AreaLight {
         u_prim: f32,
         u: Vec2,
     ) -> Option<LightSample> {
-        let (_, _, prim) = mesh.distribution.sample_continuous(u_prim);
+        // As the mesh's own `sample_area`: the triangle from `u.x`, reused inside it.
+        let _ = u_prim;
+        let (prim, ux) = mesh.distribution.sample_reuse(u.x);
         let tri = &mesh.triangles[prim];
-        let b = crate::sampling::warp::square_to_uniform_triangle(u);
+        let b = crate::sampling::warp::square_to_uniform_triangle(Vec2::new(ux, u.y));
         let (b1, b2) = (b.x, b.y);
         let b0 = 1.0 - b1 - b2;
         let [p0, p1, p2] = tri.p;
         let q = self.render_from_object.point(p0 * b0 + p1 * b1 + p2 * b2);
-        let d = q - p;
-        let dist2 = d.length_squared();
-        if dist2 == 0.0 {
-            return None;
-        }
-        let dist = dist2.sqrt();
-        let wi = d / dist;
-        let cos_light = tri.n.dot(-wi).abs();
-        if cos_light == 0.0 {
-            return None;
-        }
-        let pdf = tri.area_pdf * dist2 / cos_light;
         let [uv0, uv1, uv2] = tri.uv;
-        let le = self
-            .emission
-            .eval_at(tri.n, uv0 * b0 + uv1 * b1 + uv2 * b2, -wi);
-        if !(pdf > 0.0 && pdf.is_finite()) {
-            return None;
-        }
-        Some(LightSample {
-            wi,
-            distance: dist,
-            weight: le / pdf,
-            pdf,
+        towards_area_point(p, q, tri.n, tri.area_pdf, |w| {
+            self.emission
+                .eval_at(tri.n, uv0 * b0 + uv1 * b1 + uv2 * b2, w)
         })
     }
 
@@ -256,28 +278,8 @@ impl AreaLight {
         }
         let (si_obj, object_pdf) = self.shape.sample_area(u_prim, u)?;
         let si = si_obj.transformed(&self.render_from_object);
-        let d = si.p - p;
-        let dist2 = d.length_squared();
-        if dist2 == 0.0 {
-            return None;
-        }
-        let dist = dist2.sqrt();
-        let wi = d / dist;
-        let cos_light = si.n.dot(-wi).abs();
-        if cos_light == 0.0 {
-            return None;
-        }
-        let pdf = self.render_area_pdf(object_pdf, si.n) * dist2 / cos_light;
-        let le = self.emission.eval(&si, -wi);
-        if !(pdf > 0.0 && pdf.is_finite()) {
-            return None;
-        }
-        Some(LightSample {
-            wi,
-            distance: dist,
-            weight: le / pdf,
-            pdf,
-        })
+        let area_pdf = self.render_area_pdf(object_pdf, si.n);
+        towards_area_point(p, si.p, si.n, area_pdf, |w| self.emission.eval(&si, w))
     }
 
     /// Uniform sampling of the cone the sphere subtends (pbrt-v3's construction, with the

@@ -45,7 +45,7 @@ impl LightSampler {
             // One light (the distribution's only cell).
             return Some((0, p));
         }
-        let (_, _, i) = d.sample_continuous(u);
+        let i = d.sample_discrete(u);
         Some((i, self.probabilities[i]))
     }
 

@@ -57,15 +57,33 @@ impl Distribution1D {
         self.integral
     }
 
+    /// The cell a uniform `u` in [0, 1) falls in, in proportion to the cells' values: the
+    /// cell of [`Distribution1D::sample_continuous`] without its position and density.
+    #[inline]
+    pub fn sample_discrete(&self, u: f32) -> usize {
+        // The last cell whose cdf start is <= u.
+        self.cdf
+            .partition_point(|&c| c <= u)
+            .saturating_sub(1)
+            .min(self.func.len() - 1)
+    }
+
+    /// The cell of [`Distribution1D::sample_discrete`] and `u`'s position inside that
+    /// cell's cdf interval, rescaled to [0, 1): a uniform number again, independent of the
+    /// cell, so one coordinate of a stratified 2D sample can pick a cell and still serve
+    /// as a coordinate within it (Mitsuba's `sample_reuse`).
+    #[inline]
+    pub fn sample_reuse(&self, u: f32) -> (usize, f32) {
+        let cell = self.sample_discrete(u);
+        let (c0, c1) = (self.cdf[cell], self.cdf[cell + 1]);
+        let du = if c1 > c0 { (u - c0) / (c1 - c0) } else { 0.0 };
+        (cell, du.clamp(0.0, 1.0 - f32::EPSILON / 2.0))
+    }
+
     /// Samples a continuous position in [0, 1); returns (x, density, cell).
     #[inline]
     pub fn sample_continuous(&self, u: f32) -> (f32, f32, usize) {
-        // The last cell whose cdf start is <= u.
-        let cell = self
-            .cdf
-            .partition_point(|&c| c <= u)
-            .saturating_sub(1)
-            .min(self.func.len() - 1);
+        let cell = self.sample_discrete(u);
         let (c0, c1) = (self.cdf[cell], self.cdf[cell + 1]);
         let du = if c1 > c0 { (u - c0) / (c1 - c0) } else { 0.0 };
         let pdf = if self.integral > 0.0 {
@@ -137,7 +155,9 @@ mod tests {
         let mut rng = Pcg32::new(3, 3);
         let mut counts = [0usize; 3];
         for _ in 0..40_000 {
-            let (x, pdf, cell) = d.sample_continuous(rng.next_f32());
+            let u = rng.next_f32();
+            let (x, pdf, cell) = d.sample_continuous(u);
+            assert_eq!(d.sample_discrete(u), cell);
             assert!((0.0..1.0).contains(&x));
             assert_eq!(cell, (x * 3.0) as usize);
             assert!((pdf - d.pdf(x)).abs() < 1e-6);
