@@ -17,7 +17,7 @@ use crate::integrator::Integrator;
 use crate::math::Ray;
 use crate::sampling::Sampler;
 use crate::scene::Scene;
-use glam::{UVec2, Vec3};
+use glam::{UVec2, Vec2, Vec3};
 use rayon::prelude::*;
 use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -191,7 +191,11 @@ impl Renderer<'_> {
             sampler.next_2d(),
             self.camera.resolution().as_vec2(),
         );
-        let lens = sampler.next_2d();
+        let lens = if self.camera.uses_lens_sample() {
+            sampler.next_2d()
+        } else {
+            Vec2::splat(0.5)
+        };
         let mut ray = self.camera.generate_ray(&CameraSample { film, lens })?;
         if let Some((near, far)) = self.scene.clip {
             let forward = self.camera.render_from_camera().vector(Vec3::Z).normalize();

@@ -91,6 +91,13 @@ impl Camera {
         }
     }
 
+    /// Whether [`CameraSample::lens`] shapes the ray (only a thin lens has an aperture to
+    /// sample); the others leave the sampler's dimensions for the path.
+    #[inline]
+    pub fn uses_lens_sample(&self) -> bool {
+        matches!(self, Camera::ThinLens(_))
+    }
+
     /// The ray for a film sample, in render space with a unit direction; `None` where the
     /// camera sees nothing (outside a fisheye's image circle).
     #[inline]
