@@ -501,7 +501,10 @@ impl TriangleMesh {
         let dp02 = p0 - p2;
         let dp12 = p1 - p2;
         let det = duv02.x * duv12.y - duv02.y * duv12.x;
-        let mut dpdu = if det.abs() > 1e-12 {
+        let mut dpdu = if self.uvs.is_empty() {
+            // The default parameterisation's u runs from corner 0 to corner 1 (det = 1).
+            p1 - p0
+        } else if det.abs() > 1e-12 {
             (dp02 * duv12.y - dp12 * duv02.y) / det
         } else {
             Vec3::ZERO
