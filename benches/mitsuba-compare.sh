@@ -4,6 +4,7 @@
 # a venv with mitsuba, and Debian's libllvm19 for the llvm variants).
 #
 #   benches/mitsuba-compare.sh [VENV]      (default VENV: /tmp/venv-mitsuba)
+#   ROUNDS=5 benches/mitsuba-compare.sh    (alternating timed rounds, default 3)
 #
 # Prints samples/s of lightpath (independent and sobol samplers) and of Mitsuba's
 # llvm_ad_rgb and scalar_rgb variants at 256x256, max depth 8, 2 threads, and the relMSE
@@ -39,14 +40,29 @@ relmse() {
 [ -f "$OUT/ref.exr" ] || { echo "reference: mitsuba llvm_ad_rgb, $REF_SPP spp"; mitsuba llvm_ad_rgb "$REF_SPP" "$OUT/ref.exr" >/dev/null; }
 mitsuba llvm_ad_rgb 16 "$OUT/warmup.exr" >/dev/null   # JIT cache
 
-printf "%-26s %6s %9s %12s %10s\n" renderer spp seconds "Msamples/s" relMSE
-row() { printf "%-26s %6s %9.3f %12.3f %10.3e\n" "$1" "$2" "$3" "$(echo "$2 * 65536 / $3 / 1000000" | bc -l)" "$4"; }
-T=$(mitsuba llvm_ad_rgb 64 "$OUT/mi-llvm.exr"); row "mitsuba llvm_ad_rgb" 64 "$T" "$(relmse "$OUT/mi-llvm.exr")"
-T_MI=$T
-T=$(mitsuba scalar_rgb 16 "$OUT/mi-scalar.exr"); row "mitsuba scalar_rgb" 16 "$T" "$(relmse "$OUT/mi-scalar.exr")"
+# This machine's speed drifts by 10-20% within minutes: the timed renders alternate
+# between the renderers for $ROUNDS rounds and each row reports the median time.
+ROUNDS=${ROUNDS:-3}
+median() { tr ' ' '\n' | grep . | sort -g | awk '{a[NR]=$1} END {print (NR%2) ? a[(NR+1)/2] : (a[NR/2]+a[NR/2+1])/2}'; }
+T_LLVM="" T_SCALAR="" T_IND="" T_SOBOL=""
+for r in $(seq "$ROUNDS"); do
+    T_LLVM="$T_LLVM $(mitsuba llvm_ad_rgb 64 "$OUT/mi-llvm.exr")"
+    T_IND="$T_IND $(lightpath independent 64 "$OUT/lp-independent.exr")"
+    T_SOBOL="$T_SOBOL $(lightpath sobol 64 "$OUT/lp-sobol.exr")"
+    T_SCALAR="$T_SCALAR $(mitsuba scalar_rgb 16 "$OUT/mi-scalar.exr")"
+done
+T_MI=$(echo "$T_LLVM" | median)
+
+printf "%-34s %6s %9s %12s %10s\n" "renderer (median of $ROUNDS)" spp seconds "Msamples/s" relMSE
+row() { printf "%-34s %6s %9.3f %12.3f %10.3e\n" "$1" "$2" "$3" "$(echo "$2 * 65536 / $3 / 1000000" | bc -l)" "$4"; }
+row "mitsuba llvm_ad_rgb" 64 "$T_MI" "$(relmse "$OUT/mi-llvm.exr")"
+row "mitsuba scalar_rgb" 16 "$(echo "$T_SCALAR" | median)" "$(relmse "$OUT/mi-scalar.exr")"
 for s in independent sobol; do
-    T=$(lightpath $s 64 "$OUT/lp-$s.exr"); row "lightpath $s" 64 "$T" "$(relmse "$OUT/lp-$s.exr")"
-    # Equal time: as many samples as fit in Mitsuba llvm's 64-spp time.
+    if [ $s = independent ]; then TS=$T_IND; else TS=$T_SOBOL; fi
+    T=$(echo "$TS" | median)
+    row "lightpath $s" 64 "$T" "$(relmse "$OUT/lp-$s.exr")"
+    # Equal time: as many samples as fit in Mitsuba llvm's 64-spp time (both medians).
     SPP=$(echo "64 * $T_MI / $T" | bc -l | awk '{n=int($1+0.5); if(n<1)n=1; print n}')
-    T2=$(lightpath $s "$SPP" "$OUT/lp-$s-eq.exr"); row "lightpath $s (equal time)" "$SPP" "$T2" "$(relmse "$OUT/lp-$s-eq.exr")"
+    T2=$(lightpath $s "$SPP" "$OUT/lp-$s-eq.exr")
+    row "lightpath $s (equal time)" "$SPP" "$T2" "$(relmse "$OUT/lp-$s-eq.exr")"
 done
