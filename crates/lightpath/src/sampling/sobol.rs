@@ -184,19 +184,28 @@ fn permutation_round(mut i: u32, w: u32, p: u32) -> u32 {
 /// Draws computed together: the sampler fills this many dimensions at once.
 const BATCH: usize = 8;
 
+/// Where a batch starts: the pixel's hash, the batch's first dimension, the sample index
+/// and the sample count.
+#[derive(Debug, Clone, Copy)]
+struct BatchStart {
+    pixel_hash: u64,
+    dim0: u32,
+    index: u32,
+    n: u32,
+}
+
 /// The points of dimensions `dim0 .. dim0 + BATCH` of sample `index` (out of `n`) for the
 /// pixel hashed to `pixel_hash`, as x and y coordinates: the same values as the scalar
 /// definition ([`SobolSampler::point`]), written as straight-line loops over the lanes so
 /// that the compiler computes the lanes together in vector registers.
 #[inline(always)]
-fn fill_lanes(
-    pixel_hash: u64,
-    dim0: u32,
-    index: u32,
-    n: u32,
-    xs: &mut [f32; BATCH],
-    ys: &mut [f32; BATCH],
-) {
+fn fill_lanes(at: BatchStart, xs: &mut [f32; BATCH], ys: &mut [f32; BATCH]) {
+    let BatchStart {
+        pixel_hash,
+        dim0,
+        index,
+        n,
+    } = at;
     let mut h = [0u64; BATCH];
     for (k, h) in h.iter_mut().enumerate() {
         *h = dimension_hash(pixel_hash, dim0 + k as u32);
@@ -235,33 +244,30 @@ fn fill_lanes(
     }
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn fill_lanes_avx2(
-    pixel_hash: u64,
-    dim0: u32,
-    index: u32,
-    n: u32,
-    xs: &mut [f32; BATCH],
-    ys: &mut [f32; BATCH],
-) {
-    fill_lanes(pixel_hash, dim0, index, n, xs, ys)
+/// [`fill_lanes`] compiled for a set of processor features (used only where the processor
+/// has them).
+macro_rules! fill_lanes_for {
+    ($(#[$doc:meta])* $name:ident, $features:literal) => {
+        $(#[$doc])*
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $features)]
+        unsafe fn $name(at: BatchStart, xs: &mut [f32; BATCH], ys: &mut [f32; BATCH]) {
+            fill_lanes(at, xs, ys)
+        }
+    };
 }
 
-/// [`fill_lanes`] where the processor multiplies 64-bit lanes natively (AVX-512DQ), as the
-/// two 64-bit hashes per lane want.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,avx512f,avx512dq,avx512vl")]
-unsafe fn fill_lanes_avx512(
-    pixel_hash: u64,
-    dim0: u32,
-    index: u32,
-    n: u32,
-    xs: &mut [f32; BATCH],
-    ys: &mut [f32; BATCH],
-) {
-    fill_lanes(pixel_hash, dim0, index, n, xs, ys)
-}
+fill_lanes_for!(
+    /// Eight 32-bit lanes per instruction.
+    fill_lanes_avx2,
+    "avx2"
+);
+fill_lanes_for!(
+    /// With native 64-bit lane multiplies (AVX-512DQ), as the two 64-bit hashes per lane
+    /// want.
+    fill_lanes_avx512,
+    "avx2,avx512f,avx512dq,avx512vl"
+);
 
 /// The hash of one dimension of a pixel: seeds of its permutation (low 32 bits) and of the
 /// x scramble (high 32 bits); `mix_bits` of it seeds the y scramble.
@@ -351,32 +357,33 @@ impl SobolSampler {
 
     #[inline(never)]
     fn refill(&mut self) {
-        let (h, d, i, n) = (
-            self.pixel_hash,
-            self.dimension,
-            self.index,
-            self.samples_per_pixel,
-        );
+        let at = BatchStart {
+            pixel_hash: self.pixel_hash,
+            dim0: self.dimension,
+            index: self.index,
+            n: self.samples_per_pixel,
+        };
+        let (xs, ys) = (&mut self.xs, &mut self.ys);
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx512dq")
+        let vector = if std::arch::is_x86_feature_detected!("avx512dq")
             && std::arch::is_x86_feature_detected!("avx512vl")
         {
             // SAFETY: the processor supports AVX-512 F, DQ and VL (checked just above;
             // DQ and VL imply F, and every AVX-512 processor has AVX2).
-            unsafe { fill_lanes_avx512(h, d, i, n, &mut self.xs, &mut self.ys) };
-            self.dimension += BATCH as u32;
-            self.next = 0;
-            return;
-        }
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
+            unsafe { fill_lanes_avx512(at, xs, ys) };
+            true
+        } else if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the processor supports AVX2 (checked just above).
-            unsafe { fill_lanes_avx2(h, d, i, n, &mut self.xs, &mut self.ys) };
-            self.dimension += BATCH as u32;
-            self.next = 0;
-            return;
+            unsafe { fill_lanes_avx2(at, xs, ys) };
+            true
+        } else {
+            false
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let vector = false;
+        if !vector {
+            fill_lanes(at, xs, ys);
         }
-        fill_lanes(h, d, i, n, &mut self.xs, &mut self.ys);
         self.dimension += BATCH as u32;
         self.next = 0;
     }
@@ -472,22 +479,20 @@ mod tests {
             }
         }
         // Every variant the processor can run, whichever the sampler picks.
-        type Fill = fn(u64, u32, u32, u32, &mut [f32; BATCH], &mut [f32; BATCH]);
+        type Fill = fn(BatchStart, &mut [f32; BATCH], &mut [f32; BATCH]);
         let mut variants: Vec<(&str, Fill)> = vec![("portable", fill_lanes)];
         #[cfg(target_arch = "x86_64")]
         {
             if std::arch::is_x86_feature_detected!("avx2") {
                 // SAFETY: AVX2 is available (checked just above).
-                variants.push(("avx2", |h, d, i, n, xs, ys| unsafe {
-                    fill_lanes_avx2(h, d, i, n, xs, ys)
-                }));
+                variants.push(("avx2", |at, xs, ys| unsafe { fill_lanes_avx2(at, xs, ys) }));
             }
             if std::arch::is_x86_feature_detected!("avx512dq")
                 && std::arch::is_x86_feature_detected!("avx512vl")
             {
                 // SAFETY: AVX-512 F, DQ and VL are available (checked just above).
-                variants.push(("avx512", |h, d, i, n, xs, ys| unsafe {
-                    fill_lanes_avx512(h, d, i, n, xs, ys)
+                variants.push(("avx512", |at, xs, ys| unsafe {
+                    fill_lanes_avx512(at, xs, ys)
                 }));
             }
         }
@@ -496,7 +501,13 @@ mod tests {
                 let (mut xs, mut ys) = ([0.0; BATCH], [0.0; BATCH]);
                 let mut s = SobolSampler::new(spp, 5);
                 s.start_pixel_sample(UVec2::new(3, 4), index);
-                fill(s.pixel_hash, 8, index, spp, &mut xs, &mut ys);
+                let at = BatchStart {
+                    pixel_hash: s.pixel_hash,
+                    dim0: 8,
+                    index,
+                    n: spp,
+                };
+                fill(at, &mut xs, &mut ys);
                 for k in 0..BATCH {
                     let want = s.point(8 + k as u32);
                     assert_eq!((xs[k], ys[k]), (want.x, want.y), "{name} {spp} {index}");
