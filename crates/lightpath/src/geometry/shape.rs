@@ -148,7 +148,8 @@ impl Shape {
 
     /// A point on the surface, uniform in object-space area: its interaction (object
     /// space, `wo` along the normal) and the area density. `None` for the plane, CSG and
-    /// shapes without area.
+    /// shapes without area. `u_prim` picks a cuboid's face or a cylinder's side or cap;
+    /// meshes choose their triangle with `u.x` (see [`TriangleMesh::sample_area`]).
     pub fn sample_area(&self, u_prim: f32, u: Vec2) -> Option<(SurfaceInteraction, f32)> {
         let area = self.area();
         if !(area.is_finite() && area > 0.0) {

@@ -138,8 +138,10 @@ pub fn luminance(c: Vec3) -> f32 {
 }
 
 impl Light {
-    /// Samples light arriving at `p`; `u_prim` picks a part (a triangle of a mesh),
-    /// `u` the point on it.
+    /// Samples light arriving at `p`; `u_prim` picks a part of a shape made of a few (a
+    /// cuboid's face, a cylinder's side or cap), `u` the point on it. Triangle meshes
+    /// pick their triangle with `u.x` and reuse it inside the triangle instead, so that a
+    /// stratified `u` stays stratified over the whole mesh.
     pub fn sample(&self, p: Vec3, u_prim: f32, u: glam::Vec2) -> Option<LightSample> {
         match self {
             Light::Point(l) => point_sample(l.position, l.intensity, p),
