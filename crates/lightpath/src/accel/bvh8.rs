@@ -13,7 +13,7 @@
 //! then per child a `u32` reference (an inner node's index, or a leaf's first position)
 //! and a `u32` count (0 for an inner node, else the number of primitives; `u32::MAX` for
 //! an unused slot). Leaves are laid out for blocks of four primitives
-//! ([`super::collapse`]), so a triangle mesh tests each leaf with SIMD.
+//! (the `collapse` module), so a triangle mesh tests each leaf with SIMD.
 //!
 //! Traversal, per ray: the near and far plane of each axis are chosen once from the
 //! signs of the direction, so a node test is a subtraction and a multiplication per
@@ -271,7 +271,7 @@ impl Bvh8 {
         wide
     }
 
-    /// Collapses a binary BVH into 8-wide nodes ([`super::collapse`]).
+    /// Collapses a binary BVH into 8-wide nodes (the `collapse` module).
     pub fn collapse(bvh: &Bvh) -> Bvh8 {
         let tree = collapse::<8>(bvh);
         use rayon::prelude::*;
@@ -304,7 +304,7 @@ impl Bvh8 {
         self
     }
 
-    /// The primitive at every leaf position (see [`super::collapse`]); the positions
+    /// The primitive at every leaf position (see the `collapse` module); the positions
     /// that [`Bvh8::intersect_leaves`] hands out index it.
     pub fn prim_order(&self) -> &[u32] {
         &self.prim_order

@@ -10,7 +10,7 @@
 //! `res_i = d_i · ∛(λN / V)` over the axes of non-zero extent; an axis of zero extent
 //! gets one cell), each axis capped at [`MAX_RES`] and the total at [`MAX_CELLS`].
 //! A primitive is registered in every cell its box overlaps, its box grown by
-//! [`CELL_EPS`] of a cell so that rounding in the walk never misses it. The cells are a
+//! `CELL_EPS` (1e-4) of a cell so that rounding in the walk never misses it. The cells are a
 //! compressed sparse row layout: `offsets[c]..offsets[c + 1]` is cell `c`'s range in
 //! `indices` (cell `c = (z · ry + y) · rx + x`), built by a counting pass, a prefix sum
 //! and a filling pass: 4 bytes a cell plus 4 bytes a reference, no per-cell vectors.

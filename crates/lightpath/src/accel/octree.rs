@@ -10,7 +10,7 @@
 //! a splitting plane). A node becomes a leaf when it holds at most [`MAX_LEAF`]
 //! primitives, at depth [`MAX_DEPTH`], or when splitting is futile (every non-empty octant
 //! would get every primitive). Otherwise each primitive goes to every octant its box
-//! overlaps (grown by [`CELL_EPS`] of the node's side, so rounding in traversal never
+//! overlaps (grown by `CELL_EPS` (1e-5) of the node's side, so rounding in traversal never
 //! misses it): primitives are stored in every leaf they overlap. Large nodes build their
 //! octants in parallel.
 //!

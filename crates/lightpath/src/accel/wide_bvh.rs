@@ -4,7 +4,7 @@
 //! The nearest hit child is visited first, the others go on the stack with their entry
 //! distances and are culled on pop. Selected with `--accel bvh4`.
 //!
-//! Leaves are laid out for blocks of four primitives ([`super::collapse`]), so a triangle
+//! Leaves are laid out for blocks of four primitives (the `collapse` module), so a triangle
 //! mesh tests each leaf with SIMD. The 8-wide [`super::Bvh8`] is faster on processors
 //! with AVX2 and is the default; this one stays selectable for comparison.
 //!
@@ -81,7 +81,7 @@ impl Bvh4 {
         wide
     }
 
-    /// Collapses a binary BVH into 4-wide nodes ([`super::collapse`]).
+    /// Collapses a binary BVH into 4-wide nodes (the `collapse` module).
     pub fn collapse(bvh: &Bvh) -> Bvh4 {
         let tree = collapse::<4>(bvh);
         use rayon::prelude::*;
@@ -112,7 +112,7 @@ impl Bvh4 {
         }
     }
 
-    /// The primitive at every leaf position (leaves padded as [`super::collapse`]
+    /// The primitive at every leaf position (leaves padded as the `collapse` module
     /// describes); the positions that [`Bvh4::intersect_leaves`] hands out index it.
     pub fn prim_order(&self) -> &[u32] {
         &self.prim_indices
@@ -234,7 +234,7 @@ impl Bvh4 {
 
     /// Closest hit by whole leaves: `leaf(first, count, &mut t_max)` tests the
     /// primitives at positions `first..first + count` of [`Bvh4::prim_order`] (`first`
-    /// is a multiple of [`super::collapse::LEAF_ALIGN`], and the padding up to the next multiple repeats
+    /// is a multiple of `LEAF_ALIGN` (4), and the padding up to the next multiple repeats
     /// the leaf's last primitive), lowers `t_max` for a closer hit and returns whether
     /// it found one.
     #[inline]
