@@ -36,6 +36,10 @@ pub struct TriangleMesh {
     avx2: bool,
     /// Triangle areas for area sampling, built the first time the mesh emits light.
     area_distribution: std::sync::OnceLock<crate::sampling::Distribution1D>,
+    /// Triangles whose geometric normal points against their winding's (a mirrored
+    /// instance flattened into render space keeps its corners, and so its texture
+    /// parameterisation, and marks the triangle instead); empty when none is.
+    flipped: Vec<bool>,
 }
 
 /// Per-ray constants of the watertight test: the axis permutation and shear that make
@@ -273,7 +277,19 @@ impl TriangleMesh {
             blocks,
             avx2: has_avx2(),
             area_distribution: std::sync::OnceLock::new(),
+            flipped: Vec::new(),
         })
+    }
+
+    /// Marks the triangles whose geometric normal is the opposite of their winding's
+    /// (one flag per triangle, or none).
+    pub(crate) fn set_flipped(&mut self, flipped: Vec<bool>) {
+        debug_assert!(flipped.is_empty() || flipped.len() == self.indices.len());
+        self.flipped = if flipped.iter().any(|&f| f) {
+            flipped
+        } else {
+            Vec::new()
+        };
     }
 
     /// Bytes of the acceleration structure and the packed triangle blocks.
@@ -482,6 +498,9 @@ impl TriangleMesh {
                 DVec3::Z.as_vec3()
             }
         };
+        if self.flipped.get(hit.prim as usize) == Some(&true) {
+            n = -n;
+        }
         let mut shading_n = n;
         if self.smooth && !self.normals.is_empty() {
             let ns = self.normals[i0 as usize] * b0

@@ -80,6 +80,7 @@ impl MergedMesh {
         for key in keys {
             let (with_normals, with_uvs, smooth) = key;
             let mut data = MeshData::default();
+            let mut flipped = Vec::new();
             for &i in &groups[&key] {
                 let inst = &instances[i as usize];
                 let Shape::TriangleMesh(m) = &*inst.shape else {
@@ -96,32 +97,35 @@ impl MergedMesh {
                 if with_uvs {
                     data.uvs.extend_from_slice(&m.uvs);
                 }
-                // A mirroring transform reverses the winding; swapping two corners keeps
-                // the geometric normal on the side the object-space normal maps to.
+                // A mirroring transform reverses the winding: its triangles keep their
+                // corners (and so the default texture parameterisation) and are marked,
+                // so that their geometric normal stays on the side the object-space
+                // normal maps to.
                 let flip = to.swaps_handedness();
                 for (k, t) in m.indices.iter().enumerate() {
-                    let [a, b, c] = t.map(|v| v + base);
                     part.push(part_data.len() as u32);
                     part_prim.push(data.indices.len() as u32);
-                    data.indices.push(if flip { [a, c, b] } else { [a, b, c] });
+                    data.indices.push(t.map(|v| v + base));
+                    flipped.push(flip);
                     instance.push(i);
                     prim.push(k as u32);
                 }
                 merged_flags[i as usize] = true;
             }
-            part_data.push((data, smooth));
+            part_data.push((data, smooth, flipped));
         }
         // The data comes from valid meshes; a failure here would be a bug.
         let valid = "merged mesh data is valid";
         let (mesh, parts) = if part_data.len() == 1 {
-            let (data, smooth) = part_data.pop().unwrap();
-            (
-                TriangleMesh::new(data, smooth, accel).expect(valid),
-                Vec::new(),
-            )
+            let (data, smooth, flipped) = part_data.pop().unwrap();
+            let mut mesh = TriangleMesh::new(data, smooth, accel).expect(valid);
+            mesh.set_flipped(flipped);
+            (mesh, Vec::new())
         } else {
+            // The whole mesh only finds hits (the test is two-sided); the parts make the
+            // interactions and carry the flags.
             let mut all = MeshData::default();
-            for (data, _) in &part_data {
+            for (data, _, _) in &part_data {
                 let base = all.positions.len() as u32;
                 all.positions.extend_from_slice(&data.positions);
                 all.indices
@@ -129,8 +133,10 @@ impl MergedMesh {
             }
             let parts = part_data
                 .into_iter()
-                .map(|(data, smooth)| {
-                    TriangleMesh::new(data, smooth, AccelKind::List).expect(valid)
+                .map(|(data, smooth, flipped)| {
+                    let mut part = TriangleMesh::new(data, smooth, AccelKind::List).expect(valid);
+                    part.set_flipped(flipped);
+                    part
                 })
                 .collect();
             (TriangleMesh::new(all, false, accel).expect(valid), parts)
@@ -348,11 +354,15 @@ mod tests {
                 g.shading_n,
                 si.shading_n
             );
-            // (Only the mesh with texture coordinates: a mirrored mesh without them gets
-            // the default parameterisation on its swapped corners.)
-            if g.instance == 2 {
-                assert!((g.uv - si.uv).length() < 1e-3, "{:?} vs {:?}", g.uv, si.uv);
-            }
+            // Texture coordinates and dp/du too, for meshes with and without their own
+            // uvs, mirrored or not.
+            assert!((g.uv - si.uv).length() < 1e-3, "{:?} vs {:?}", g.uv, si.uv);
+            assert!(
+                g.dpdu.normalize().dot(si.dpdu.normalize()) > 0.999,
+                "{:?} vs {:?}",
+                g.dpdu,
+                si.dpdu
+            );
             checked[g.instance as usize] += 1;
         }
         assert!(checked.iter().all(|&c| c > 500), "{checked:?}");
