@@ -322,7 +322,7 @@ impl TriangleMesh {
 
     /// A point uniformly distributed over the surface (object space): the hit record of
     /// that point, and the area density 1 / total area.
-    pub fn sample_area(&self, u_prim: f32, u: Vec2) -> Option<(ShapeHit, f32)> {
+    pub fn sample_area(&self, u: Vec2) -> Option<(ShapeHit, f32)> {
         let d = self.area_distribution();
         let area = self.area();
         if d.is_empty() || area.is_nan() || area <= 0.0 {
@@ -331,7 +331,6 @@ impl TriangleMesh {
         // The triangle is chosen with `u.x`, which is then rescaled for use inside it: a
         // stratified `u` stays stratified over the whole surface (a quad's two triangles
         // share the 2D strata instead of taking a random subset each).
-        let _ = u_prim;
         let (prim, ux) = d.sample_reuse(u.x);
         let b = crate::sampling::warp::square_to_uniform_triangle(Vec2::new(ux, u.y));
         Some((

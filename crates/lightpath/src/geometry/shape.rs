@@ -247,7 +247,7 @@ impl Shape {
                 }
             }
             Shape::TriangleMesh(m) => {
-                let (hit, pdf) = m.sample_area(u_prim, u)?;
+                let (hit, pdf) = m.sample_area(u)?;
                 let ray = Ray::new(Vec3::ZERO, Vec3::Z);
                 let si = m.interaction(&ray, &hit);
                 return Some((SurfaceInteraction { wo: si.n, ..si }, pdf));

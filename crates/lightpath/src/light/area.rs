@@ -240,22 +240,15 @@ impl AreaLight {
     #[inline]
     pub fn sample(&self, p: Vec3, u_prim: f32, u: Vec2) -> Option<LightSample> {
         if let Some(mesh) = &self.flat_mesh {
-            return self.sample_flat_mesh(mesh, p, u_prim, u);
+            return self.sample_flat_mesh(mesh, p, u);
         }
         self.sample_general(p, u_prim, u)
     }
 
     /// `sample_general` for a flat triangle mesh, from its precomputed triangles.
     #[inline]
-    fn sample_flat_mesh(
-        &self,
-        mesh: &FlatMeshEmitter,
-        p: Vec3,
-        u_prim: f32,
-        u: Vec2,
-    ) -> Option<LightSample> {
+    fn sample_flat_mesh(&self, mesh: &FlatMeshEmitter, p: Vec3, u: Vec2) -> Option<LightSample> {
         // As the mesh's own `sample_area`: the triangle from `u.x`, reused inside it.
-        let _ = u_prim;
         let (prim, ux) = mesh.distribution.sample_reuse(u.x);
         let tri = &mesh.triangles[prim];
         let b = crate::sampling::warp::square_to_uniform_triangle(Vec2::new(ux, u.y));

@@ -74,18 +74,22 @@ impl Distribution1D {
     /// as a coordinate within it (Mitsuba's `sample_reuse`).
     #[inline]
     pub fn sample_reuse(&self, u: f32) -> (usize, f32) {
+        let (cell, du) = self.cell_and_offset(u);
+        (cell, du.clamp(0.0, 1.0 - f32::EPSILON / 2.0))
+    }
+
+    /// The cell `u` falls in and `u`'s relative position in that cell's cdf interval.
+    #[inline]
+    fn cell_and_offset(&self, u: f32) -> (usize, f32) {
         let cell = self.sample_discrete(u);
         let (c0, c1) = (self.cdf[cell], self.cdf[cell + 1]);
-        let du = if c1 > c0 { (u - c0) / (c1 - c0) } else { 0.0 };
-        (cell, du.clamp(0.0, 1.0 - f32::EPSILON / 2.0))
+        (cell, if c1 > c0 { (u - c0) / (c1 - c0) } else { 0.0 })
     }
 
     /// Samples a continuous position in [0, 1); returns (x, density, cell).
     #[inline]
     pub fn sample_continuous(&self, u: f32) -> (f32, f32, usize) {
-        let cell = self.sample_discrete(u);
-        let (c0, c1) = (self.cdf[cell], self.cdf[cell + 1]);
-        let du = if c1 > c0 { (u - c0) / (c1 - c0) } else { 0.0 };
+        let (cell, du) = self.cell_and_offset(u);
         let pdf = if self.integral > 0.0 {
             self.func[cell] / self.integral
         } else {
