@@ -6,6 +6,10 @@
 //! decorrelated between pixels and dimensions, and still a pure function of
 //! (pixel, sample index, seed). Sample counts that are powers of two stratify best.
 //!
+//! The sampler computes eight dimensions at a time, each lane of a vector register one
+//! dimension (AVX-512DQ or AVX2 where the processor has them); the values are those of
+//! the one-dimension-at-a-time definition, bit for bit.
+//!
 //! ```xml
 //! <sampler type="sobol" count="64"/>
 //! ```
