@@ -228,14 +228,8 @@ fn fill_lanes(at: BatchStart, xs: &mut [f32; BATCH], ys: &mut [f32; BATCH]) {
                 }
             }
         }
-        if n.is_power_of_two() {
-            for k in 0..BATCH {
-                idx[k] = idx[k].wrapping_add(h[k] as u32) & (n - 1);
-            }
-        } else {
-            for k in 0..BATCH {
-                idx[k] = finish_permutation(idx[k], n, h[k] as u32);
-            }
+        for k in 0..BATCH {
+            idx[k] = finish_permutation(idx[k], n, h[k] as u32);
         }
     }
     for k in 0..BATCH {
