@@ -5,6 +5,12 @@
 //! (`<float name="fov" value="40"/>`). `<ref id="..."/>` stands for an object defined
 //! earlier with that id (the same node, so it is built once); `<include
 //! filename="..."/>` inserts the children of another file's root element.
+//!
+//! As in lightwave, a file may hold several top-level elements: objects defined at the
+//! top level with an `id` (a `<scene id="scene">`, a shared `<bsdf>`) can be referred to
+//! by the elements after them, such as the `<integrator>` that renders the scene.
+//! A file with one top-level element reads as that element; with several, as a
+//! [`DOCUMENT`] node that holds them in order.
 
 use super::props::{Node, Property};
 use crate::error::{Error, Location, Result};
@@ -17,7 +23,36 @@ const PROPERTY_TAGS: &[&str] = &[
     "integer", "float", "string", "boolean", "bool", "vector", "color", "point", "rgb",
 ];
 
+/// Tag of the node that holds the top-level elements of a file with several.
+pub const DOCUMENT: &str = "#document";
+
+/// Wraps the text in one element so that several top-level elements parse. The wrapper
+/// takes a line of its own, and an XML declaration is blanked with spaces, so every other
+/// character keeps its column and lies one row further down. `None` when the text has a
+/// document type declaration (which cannot move inside an element).
+fn wrap_top_level(text: &str) -> Option<String> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    if text.contains("<!DOCTYPE") {
+        return None;
+    }
+    let mut body = text.to_string();
+    if body.trim_start().starts_with("<?xml") {
+        let start = body.find("<?xml").unwrap_or(0);
+        let end = body[start..].find("?>").map(|e| start + e + 2)?;
+        let blank: String = body[start..end]
+            .chars()
+            .map(|c| if c == '\n' { '\n' } else { ' ' })
+            .collect();
+        body.replace_range(start..end, &blank);
+    }
+    Some(format!(
+        "<lightpath-document>\n{body}\n</lightpath-document>"
+    ))
+}
+
 struct Reader {
+    /// Rows the text being parsed was moved down by [`wrap_top_level`] (0 or 1).
+    shift: u32,
     ids: HashMap<String, Rc<Node>>,
     /// Files being read, to reject include cycles.
     stack: Vec<PathBuf>,
@@ -28,6 +63,7 @@ struct Reader {
 /// Parses `path` and returns its root element as a node.
 pub fn read_file(path: &Path, defines: &[(String, String)]) -> Result<Rc<Node>> {
     let mut reader = Reader {
+        shift: 0,
         ids: HashMap::new(),
         stack: Vec::new(),
         defines: sorted_defines(defines),
@@ -39,6 +75,7 @@ pub fn read_file(path: &Path, defines: &[(String, String)]) -> Result<Rc<Node>> 
 /// Parses XML text as if it were the file `path` (relative paths resolve from there).
 pub fn read_str(text: &str, path: &Path, defines: &[(String, String)]) -> Result<Rc<Node>> {
     let mut reader = Reader {
+        shift: 0,
         ids: HashMap::new(),
         stack: Vec::new(),
         defines: sorted_defines(defines),
@@ -72,14 +109,80 @@ impl Reader {
     }
 
     fn parse(&mut self, text: &str, path: &Path) -> Result<Rc<Node>> {
-        let doc = roxmltree::Document::parse(text).map_err(|e| {
+        let wrapped = wrap_top_level(text);
+        let shift = wrapped.is_some() as u32;
+        let doc = roxmltree::Document::parse(wrapped.as_deref().unwrap_or(text)).map_err(|e| {
             let pos = e.pos();
+            // The message ends with the position, which is in the wrapped text.
+            let message = e.to_string();
+            let message = message
+                .rsplit_once(" at ")
+                .map_or(message.as_str(), |(m, _)| m)
+                .to_string();
             Error::scene(
-                location(path, pos.row, pos.col),
-                format!("malformed XML: {e}"),
+                location(path, pos.row.saturating_sub(shift).max(1), pos.col),
+                format!("malformed XML: {message}"),
             )
         })?;
-        self.element(&doc, doc.root_element(), path)
+        let outer = std::mem::replace(&mut self.shift, shift);
+        let result = self.top_level(&doc, path);
+        self.shift = outer;
+        result
+    }
+
+    /// The file's only top-level element, or a [`DOCUMENT`] node holding all of them.
+    fn top_level(&mut self, doc: &roxmltree::Document, path: &Path) -> Result<Rc<Node>> {
+        if self.shift == 0 {
+            return self.element(doc, doc.root_element(), path);
+        }
+        let wrapper = doc.root_element();
+        let mut tops = Vec::new();
+        for child in wrapper.children() {
+            if child.is_text() {
+                if child.text().is_some_and(|t| !t.trim().is_empty()) {
+                    return Err(Error::scene(
+                        self.node_location(doc, child, path),
+                        "unexpected text in scene file",
+                    ));
+                }
+            } else if child.is_element() {
+                tops.push(child);
+            }
+        }
+        match tops.as_slice() {
+            [] => Err(Error::scene(
+                location(path, 1, 1),
+                "the file has no element",
+            )),
+            [only] => self.element(doc, *only, path),
+            _ => {
+                let mut node = Node::new(DOCUMENT, self.node_location(doc, tops[0], path));
+                for el in tops {
+                    node.children.push(self.element(doc, el, path)?);
+                }
+                Ok(Rc::new(node))
+            }
+        }
+    }
+
+    fn node_location(
+        &self,
+        doc: &roxmltree::Document,
+        node: roxmltree::Node,
+        path: &Path,
+    ) -> Location {
+        let pos = doc.text_pos_at(node.range().start);
+        location(path, pos.row - self.shift, pos.col)
+    }
+
+    fn attr_location(
+        &self,
+        doc: &roxmltree::Document,
+        attr: &roxmltree::Attribute,
+        path: &Path,
+    ) -> Location {
+        let pos = doc.text_pos_at(attr.range().start);
+        location(path, pos.row - self.shift, pos.col)
     }
 
     fn substitute(&self, value: &str) -> String {
@@ -92,7 +195,7 @@ impl Reader {
         el: roxmltree::Node,
         path: &Path,
     ) -> Result<Rc<Node>> {
-        let loc = node_location(doc, el, path);
+        let loc = self.node_location(doc, el, path);
         let tag = el.tag_name().name();
         let mut node = Node::new(tag, loc.clone());
         for attr in el.attributes() {
@@ -104,7 +207,7 @@ impl Reader {
                 name => node.properties.push(Property {
                     name: name.to_string(),
                     value,
-                    location: attr_location(doc, &attr, path),
+                    location: self.attr_location(doc, &attr, path),
                 }),
             }
         }
@@ -112,7 +215,7 @@ impl Reader {
             if child.is_text() {
                 if child.text().is_some_and(|t| !t.trim().is_empty()) {
                     return Err(Error::scene(
-                        node_location(doc, child, path),
+                        self.node_location(doc, child, path),
                         "unexpected text in scene file",
                     ));
                 }
@@ -122,7 +225,7 @@ impl Reader {
                 continue;
             }
             let ctag = child.tag_name().name();
-            let cloc = node_location(doc, child, path);
+            let cloc = self.node_location(doc, child, path);
             if PROPERTY_TAGS.contains(&ctag) {
                 let name = child.attribute("name").ok_or_else(|| {
                     Error::scene(cloc.clone(), format!("<{ctag}> needs a `name` attribute"))
@@ -138,7 +241,7 @@ impl Reader {
                     .find(|a| a.name() != "name" && a.name() != "value")
                 {
                     return Err(Error::scene(
-                        attr_location(doc, &a, path),
+                        self.attr_location(doc, &a, path),
                         format!("unknown attribute `{}` on <{ctag}>", a.name()),
                     ));
                 }
@@ -215,14 +318,4 @@ fn location(path: &Path, line: u32, column: u32) -> Location {
         line,
         column,
     }
-}
-
-fn node_location(doc: &roxmltree::Document, node: roxmltree::Node, path: &Path) -> Location {
-    let pos = doc.text_pos_at(node.range().start);
-    location(path, pos.row, pos.col)
-}
-
-fn attr_location(doc: &roxmltree::Document, attr: &roxmltree::Attribute, path: &Path) -> Location {
-    let pos = doc.text_pos_at(attr.range().start);
-    location(path, pos.row, pos.col)
 }
