@@ -117,7 +117,7 @@ impl PathTracer {
                                 si.spawn_ray(ls.wi)
                             };
                             if !scene.occluded_with_stats(&shadow, stats) {
-                                let mis = if light.is_delta() {
+                                let mis = if !light.reachable_by_rays() {
                                     1.0
                                 } else {
                                     power_heuristic(pick * ls.pdf, bsdf.pdf_local(wi_local))

@@ -22,7 +22,8 @@
 //!
 //! The scene may also be defined at the top level and rendered by the integrator after
 //! it; an instance's `<texture name="normal">` is a normal map for its BSDF; and an
-//! `area` light names (or holds) the emitting instance it samples, which is placed once:
+//! `area` light names the emitting instance it samples, or holds one that is then seen by
+//! shadow rays only (as in lightwave, it is not scene geometry):
 //!
 //! ```xml
 //! <scene id="scene">
@@ -45,8 +46,8 @@
 //! </integrator>
 //! ```
 //!
-//! Every emitting instance is sampled by next-event estimation, with or without an
-//! `area` light naming it. Transform steps (`translate`, `scale`, `rotate`, `lookat`,
+//! Every emitting instance of the scene is sampled by next-event estimation, with or
+//! without an `area` light naming it. Transform steps (`translate`, `scale`, `rotate`, `lookat`,
 //! `matrix`, row-major) apply in document order. Every element and property must be
 //! understood: an unknown type or property is an error with its file, line and column.
 
@@ -66,7 +67,9 @@ use crate::geometry::{
 use crate::integrator::{
     AmbientOcclusion, Aov, AovVariable, CameraDirection, Direct, Integrator, PathTracer,
 };
-use crate::light::{DirectionalLight, Emission, Environment, Light, PointLight, SpotLight};
+use crate::light::{
+    AreaLight, DirectionalLight, Emission, Environment, Light, PointLight, SpotLight,
+};
 use crate::material::microfacet::Distribution;
 use crate::material::{
     fresnel, Blend, ComplexIor, Conductor, Dielectric, Diffuse, Material, NormalMap, Plastic,
@@ -357,11 +360,30 @@ impl Builder {
                 }
             }
         }
-        // An area light's instance is placed once, whether it is also a child of the
-        // scene (referred to by the light) or only inside the light.
+        // As in lightwave, an area light's instance is scene geometry only when it is
+        // also a child of the scene (referred to by the light); an instance only inside
+        // the light is seen by shadow rays alone: it lights the scene but neither blocks
+        // nor reflects, and the camera does not see it.
         for inst in area_lights {
-            if placed.insert(Rc::as_ptr(&inst)) {
-                instances.extend(self.instance(&inst, 0)?);
+            if placed.contains(&Rc::as_ptr(&inst)) {
+                continue;
+            }
+            for emitter in self.instance(&inst, 0)? {
+                let Some(emission) = emitter.emission else {
+                    continue;
+                };
+                if !emitter.shape.area().is_finite() {
+                    return Err(inst.error(format!(
+                        "a {} cannot emit light: it has no finite area",
+                        emitter.shape.kind_name()
+                    )));
+                }
+                lights.push(Light::Area(AreaLight::unplaced(
+                    emitter.shape,
+                    emitter.render_from_object,
+                    emission,
+                )));
+                weights.push(1.0);
             }
         }
         let camera = camera.ok_or_else(|| node.error("the scene has no <camera>"))?;
@@ -1536,15 +1558,26 @@ mod tests {
         let loaded =
             crate::io::load_scene_str(xml, &dir.join("s.xml"), &LoadOptions::default()).unwrap();
         let inst = &loaded.scene.instances;
-        assert_eq!(inst.len(), 5, "the referred lamp is placed once");
-        assert_eq!(inst.iter().filter(|i| i.emission.is_some()).count(), 2);
+        assert_eq!(
+            inst.len(),
+            4,
+            "the referred lamp is placed once, the light's own instance not at all"
+        );
+        assert_eq!(inst.iter().filter(|i| i.emission.is_some()).count(), 1);
+        let areas: Vec<bool> = (loaded.scene.lights.iter())
+            .filter_map(|l| match l {
+                Light::Area(a) => Some(a.placed),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(areas.len(), 2);
+        assert_eq!(areas.iter().filter(|&&p| p).count(), 1);
         let normal_map = |i: usize| match inst[i].material.as_deref() {
             Some(Material::NormalMap(m)) => {
                 Some((m.normal.eval(Vec2::splat(0.25)), m.inner.clone()))
             }
             _ => None,
         };
-        // Scene children first, then the instance found only inside an area light.
         let (n, inner) = normal_map(1).expect("a normal-mapped diffuse");
         assert!((n - Vec3::new(0.5, 0.5, 1.0)).length() < 0.01, "{n:?}");
         assert!(matches!(*inner, Material::Diffuse(_)), "{inner:?}");
@@ -1552,7 +1585,48 @@ mod tests {
         assert!((n - Vec3::new(0.5, 0.5, 1.0)).length() < 0.01, "{n:?}");
         assert!(matches!(*inner, Material::RoughConductor(_)));
         // Without a BSDF the instance absorbs, mapped or not.
-        assert!(inst[3].material.is_none());
-        assert!(inst[3].emission.is_none() && inst[4].emission.is_some());
+        assert!(inst[3].material.is_none() && inst[3].emission.is_none());
+    }
+
+    /// An area light around an instance that is not in the scene lights it by next-event
+    /// estimation alone, with full weight: a floor lit by a large emitter behind the
+    /// camera renders the same whether the emitter is scene geometry (then BSDF samples
+    /// that hit it share the estimate by MIS) or only inside the light. MIS weights on
+    /// the unplaced light's samples would darken the floor by about a fifth here.
+    #[test]
+    fn unplaced_area_lights_are_sampled_with_full_weight() {
+        let render = |lamp: &str, light: &str| {
+            let xml = format!(
+                r#"<integrator type="direct"><scene>
+                <camera type="perspective"><integer name="width" value="16"/><integer name="height" value="16"/>
+                    <float name="fov" value="20"/></camera>
+                <instance><shape type="rectangle"/><bsdf type="diffuse"><texture name="albedo" type="constant" value="0.8"/></bsdf>
+                    <transform><rotate axis="0,1,0" angle="180"/><scale value="20"/><translate z="5"/></transform></instance>
+                {lamp}
+                <light type="area">{light}</light>
+            </scene><sampler type="independent" count="64"/></integrator>"#
+            );
+            let loaded =
+                crate::io::load_scene_str(&xml, Path::new("lamp.xml"), &LoadOptions::default())
+                    .unwrap();
+            let renderer = crate::render::Renderer {
+                scene: &loaded.scene,
+                camera: loaded.scene.camera.as_ref().unwrap(),
+                integrator: &loaded.integrator,
+                sampler: &loaded.sampler,
+            };
+            let image = renderer.render(&|_| {}).unwrap().0;
+            image.pixels.iter().map(|p| p.x as f64).sum::<f64>() / image.pixels.len() as f64
+        };
+        let lamp = r#"<instance id="lamp"><shape type="rectangle"/>
+            <emission type="lambertian"><texture name="emission" type="constant" value="1"/></emission>
+            <transform><scale value="20"/><translate z="-0.5"/></transform></instance>"#;
+        let placed = render(lamp, r#"<ref id="lamp"/>"#);
+        let unplaced = render("", &lamp.replace(r#" id="lamp""#, ""));
+        assert!(placed > 0.05, "{placed}");
+        assert!(
+            (unplaced / placed - 1.0).abs() < 0.03,
+            "placed {placed} unplaced {unplaced}"
+        );
     }
 }

@@ -173,6 +173,10 @@ pub struct AreaLight {
     area: f32,
     /// Flat triangle meshes, set up for sampling.
     flat_mesh: Option<FlatMeshEmitter>,
+    /// Whether the surface is also scene geometry that rays can hit (then next-event
+    /// estimation shares its paths with BSDF sampling by MIS); lightwave's area lights
+    /// around an instance that is not in the scene are seen only by shadow rays.
+    pub(crate) placed: bool,
 }
 
 impl AreaLight {
@@ -202,11 +206,21 @@ impl AreaLight {
             sphere,
             area,
             flat_mesh: None,
+            placed: true,
         };
         if let Shape::TriangleMesh(m) = &*light.shape {
             light.flat_mesh = FlatMeshEmitter::new(m, &render_from_object, &light);
         }
         light
+    }
+
+    /// An emitter that is not scene geometry: next-event estimation samples it, rays
+    /// never hit it (it neither blocks nor reflects light, and the camera does not see it).
+    pub fn unplaced(shape: Arc<Shape>, render_from_object: Transform, emission: Emission) -> Self {
+        AreaLight {
+            placed: false,
+            ..AreaLight::new(shape, render_from_object, emission)
+        }
     }
 
     /// Emitted power (approximate for non-uniform scaling), for light selection.

@@ -190,4 +190,15 @@ impl Light {
     pub fn is_delta(&self) -> bool {
         !matches!(self, Light::Environment(_) | Light::Area(_))
     }
+
+    /// Whether rays that sample the BSDF can reach this light (then its next-event
+    /// estimates are weighted by MIS against theirs): the environment and area lights
+    /// that are scene geometry; not delta lights, nor area lights outside the scene.
+    pub fn reachable_by_rays(&self) -> bool {
+        match self {
+            Light::Environment(_) => true,
+            Light::Area(a) => a.placed,
+            _ => false,
+        }
+    }
 }

@@ -169,11 +169,15 @@ impl Scene {
 
     /// Sets the lights; `weights[i]` scales how often light `i` is picked for next-event
     /// estimation (0: never). Every instance with an emission becomes an area light of
-    /// weight 1 after them. Fails if there is more than one environment.
-    pub fn set_lights(&mut self, mut lights: Vec<Light>, weights: &[f32]) -> Result<(), String> {
-        let mut weights = weights.to_vec();
-        lights.retain(|l| !matches!(l, Light::Area(_)));
-        weights.truncate(lights.len());
+    /// weight 1 after them (area lights in `lights` are dropped, except those that are
+    /// not scene geometry, [`AreaLight::unplaced`]). Fails if there is more than one
+    /// environment.
+    pub fn set_lights(&mut self, lights: Vec<Light>, weights: &[f32]) -> Result<(), String> {
+        let (mut lights, mut weights): (Vec<Light>, Vec<f32>) = lights
+            .into_iter()
+            .zip(weights.iter().copied().chain(std::iter::repeat(1.0)))
+            .filter(|(l, _)| !matches!(l, Light::Area(a) if a.placed))
+            .unzip();
         for inst in &mut self.instances {
             inst.light = None;
             if let Some(e) = &inst.emission {
