@@ -2,18 +2,25 @@
 //! for the course's tests.
 //!
 //! ```xml
-//! <integrator type="aov" variable="normals">   <!-- normals, distance, uv, bvh -->
+//! <integrator type="aov" variable="normals">   <!-- or rawnormals, distance, uv, albedo, bvh -->
 //!     <scene>...</scene>
 //! </integrator>
 //! <integrator type="aov" variable="bvh" scale="100">...</integrator>
+//! <integrator type="normals" remap="false">...</integrator>   <!-- lightwave's names -->
+//! <integrator type="albedo">...</integrator>
 //! ```
 //!
-//! | variable  | value                                                              | miss      |
-//! |-----------|--------------------------------------------------------------------|-----------|
-//! | `normals` | shading normal mapped to colour, `(n + 1) / 2`                     | 0.5       |
-//! | `distance`| distance from the ray origin to the hit                            | 0         |
-//! | `uv`      | texture coordinates `(u, v, 0)`                                    | 0         |
-//! | `bvh`     | `(nodes visited, primitives tested, 0) / scale`                    | counts    |
+//! | variable     | value                                                           | miss      |
+//! |--------------|-----------------------------------------------------------------|-----------|
+//! | `normals`    | shading normal mapped to colour, `(n + 1) / 2`                  | 0.5       |
+//! | `rawnormals` | shading normal `n`                                              | 0         |
+//! | `distance`   | distance from the ray origin to the hit                         | 0         |
+//! | `uv`         | texture coordinates `(u, v, 0)`                                 | 0         |
+//! | `albedo`     | the material's colour (as a denoiser's feature buffer)          | 0         |
+//! | `bvh`        | `(nodes visited, primitives tested, 0) / scale`                 | counts    |
+//!
+//! lightwave's `normals` integrator is `normals` (`remap="false"`: `rawnormals`), its
+//! `albedo` integrator `albedo`.
 //!
 //! [`AovLayer`] and [`first_hit`] are the layers `lightpath render --aov` writes into
 //! the EXR beside the image (see [`crate::render::Renderer::render_aovs`]).
@@ -26,19 +33,26 @@ use glam::Vec3;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum AovVariable {
     Normals,
+    /// The shading normal itself, not remapped (lightwave's `normals` integrator with
+    /// `remap="false"`).
+    RawNormals,
     Distance,
     Uv,
+    Albedo,
     Bvh,
 }
 
 impl AovVariable {
-    pub const NAMES: &'static [&'static str] = &["normals", "distance", "uv", "bvh"];
+    pub const NAMES: &'static [&'static str] =
+        &["normals", "rawnormals", "distance", "uv", "albedo", "bvh"];
 
     pub fn from_name(name: &str) -> Option<AovVariable> {
         match name {
             "normals" => Some(AovVariable::Normals),
+            "rawnormals" => Some(AovVariable::RawNormals),
             "distance" => Some(AovVariable::Distance),
             "uv" => Some(AovVariable::Uv),
+            "albedo" => Some(AovVariable::Albedo),
             "bvh" => Some(AovVariable::Bvh),
             _ => None,
         }
@@ -63,6 +77,10 @@ impl Aov {
                 Some(si) => (si.shading_n + Vec3::ONE) * 0.5,
                 None => Vec3::splat(0.5),
             },
+            AovVariable::RawNormals => hit.map_or(Vec3::ZERO, |si| si.shading_n),
+            AovVariable::Albedo => hit.map_or(Vec3::ZERO, |si| {
+                scene.material(&si).map_or(Vec3::ZERO, |m| m.albedo(si.uv))
+            }),
             AovVariable::Distance => {
                 hit.map_or(Vec3::ZERO, |si| Vec3::splat(si.t * ray.direction.length()))
             }

@@ -235,6 +235,22 @@ impl Builder {
                 self.default_accel = default_accel(Some(variable));
                 Integrator::Aov(Aov { variable, scale })
             }
+            // lightwave's feature-buffer integrators, as AOVs.
+            Some("normals") => {
+                let variable = if node.bool_or("remap", true)? {
+                    AovVariable::Normals
+                } else {
+                    AovVariable::RawNormals
+                };
+                Integrator::Aov(Aov {
+                    variable,
+                    scale: 1.0,
+                })
+            }
+            Some("albedo") => Integrator::Aov(Aov {
+                variable: AovVariable::Albedo,
+                scale: 1.0,
+            }),
             Some("camera") => Integrator::CameraDirection(CameraDirection),
             Some("ao") => {
                 let distance = node.float_or("distance", f32::INFINITY)?;
@@ -277,7 +293,15 @@ impl Builder {
             _ => {
                 return Err(unknown_type(
                     node,
-                    &["aov", "ao", "camera", "direct", "pathtracer"],
+                    &[
+                        "aov",
+                        "ao",
+                        "camera",
+                        "direct",
+                        "pathtracer",
+                        "normals",
+                        "albedo",
+                    ],
                 ))
             }
         };
@@ -1628,5 +1652,44 @@ mod tests {
             (unplaced / placed - 1.0).abs() < 0.03,
             "placed {placed} unplaced {unplaced}"
         );
+    }
+
+    /// lightwave's `normals` (remapped or not) and `albedo` integrators: the first hit's
+    /// shading normal and material colour at the centre of a sphere facing the camera,
+    /// and their miss values in a corner.
+    #[test]
+    fn normals_and_albedo_integrators() {
+        let render = |integrator: &str| {
+            let xml = format!(
+                r#"<integrator {integrator}><scene>
+                <camera type="perspective"><integer name="width" value="9"/><integer name="height" value="9"/>
+                    <float name="fov" value="30"/></camera>
+                <instance><shape type="sphere"/>
+                    <bsdf type="diffuse"><texture name="albedo" type="constant" value="0.7,0.2,0.1"/></bsdf>
+                    <transform><translate z="5"/></transform></instance>
+            </scene><sampler type="independent" count="1"/></integrator>"#
+            );
+            let loaded =
+                crate::io::load_scene_str(&xml, Path::new("aov.xml"), &LoadOptions::default())
+                    .unwrap();
+            let renderer = crate::render::Renderer {
+                scene: &loaded.scene,
+                camera: loaded.scene.camera.as_ref().unwrap(),
+                integrator: &loaded.integrator,
+                sampler: &loaded.sampler,
+            };
+            let image = renderer.render(&|_| {}).unwrap().0;
+            (image.get(4, 4), image.get(0, 0))
+        };
+        let close = |a: Vec3, b: Vec3| (a - b).length() < 0.05;
+        let (centre, corner) = render(r#"type="albedo""#);
+        assert!(close(centre, Vec3::new(0.7, 0.2, 0.1)), "{centre:?}");
+        assert_eq!(corner, Vec3::ZERO);
+        let (centre, corner) = render(r#"type="normals" remap="false""#);
+        assert!(close(centre, Vec3::new(0.0, 0.0, -1.0)), "{centre:?}");
+        assert_eq!(corner, Vec3::ZERO);
+        let (centre, corner) = render(r#"type="normals""#);
+        assert!(close(centre, Vec3::new(0.5, 0.5, 0.0)), "{centre:?}");
+        assert_eq!(corner, Vec3::splat(0.5));
     }
 }
