@@ -101,7 +101,7 @@ pub struct RenderOptions {
     /// the course's BVH).
     #[arg(long, value_parser = names::ACCELS, value_name = "KIND")]
     pub accel: Option<String>,
-    /// Sampler: independent or sobol (default: the scene's).
+    /// Sampler: independent, sobol or halton (default: the scene's).
     #[arg(long, value_parser = names::SAMPLERS, value_name = "KIND")]
     pub sampler: Option<String>,
     /// Clamp each path's contribution to this value per channel (biased; off by default).

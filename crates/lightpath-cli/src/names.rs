@@ -15,7 +15,7 @@ pub const ACCELS: NameParser = NameParser {
     names: lightpath::accel::AccelKind::NAMES,
 };
 pub const SAMPLERS: NameParser = NameParser {
-    names: &["independent", "sobol"],
+    names: lightpath::sampling::Sampler::KINDS,
 };
 pub const AOVS: NameParser = NameParser {
     names: lightpath::integrator::AovLayer::NAMES,

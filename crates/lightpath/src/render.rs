@@ -586,7 +586,7 @@ mod tests {
     /// for both samplers, whether the passes double or are cut short by an interval.
     #[test]
     fn progressive_passes_equal_one_pass() {
-        for sampler in ["independent", "sobol"] {
+        for sampler in ["independent", "sobol", "halton"] {
             let l = scene(sampler, 13);
             let r = renderer(&l);
             let (single, single_stats) = r.render(&|_| {}).unwrap();

@@ -321,7 +321,7 @@ impl Builder {
 
     fn sampler(&self, node: &Node) -> Result<Sampler> {
         let sampler = match node.type_name.as_deref() {
-            Some(kind @ ("independent" | "sobol")) => {
+            Some(kind @ ("independent" | "sobol" | "halton")) => {
                 let count = node.int("count")?.unwrap_or(1);
                 if !(1..=1 << 24).contains(&count) {
                     return Err(node.error(format!(
@@ -333,7 +333,7 @@ impl Builder {
                     Sampler::Independent(IndependentSampler::new(count as u32, seed as u64));
                 independent.with_kind(kind).unwrap_or(independent)
             }
-            _ => return Err(unknown_type(node, &["independent", "sobol"])),
+            _ => return Err(unknown_type(node, Sampler::KINDS)),
         };
         node.check_all_used()?;
         self.check_children(node, &[])?;

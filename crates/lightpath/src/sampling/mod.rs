@@ -2,12 +2,14 @@
 //! unit square to disks, polygons, spheres and hemispheres with their densities.
 
 mod distribution;
+mod halton;
 mod independent;
 mod pcg32;
 mod sobol;
 pub mod warp;
 
 pub use distribution::{Distribution1D, Distribution2D};
+pub use halton::HaltonSampler;
 pub use independent::IndependentSampler;
 pub use pcg32::{JumpMap, Pcg32};
 pub use sobol::SobolSampler;
@@ -20,11 +22,13 @@ use glam::{UVec2, Vec2};
 /// ```xml
 /// <sampler type="independent" count="64"/>
 /// <sampler type="sobol" count="64"/>
+/// <sampler type="halton" count="36"/>
 /// ```
 #[derive(Debug, Clone)]
 pub enum Sampler {
     Independent(IndependentSampler),
     Sobol(SobolSampler),
+    Halton(HaltonSampler),
 }
 
 impl Sampler {
@@ -33,6 +37,7 @@ impl Sampler {
         match self {
             Sampler::Independent(s) => s.samples_per_pixel,
             Sampler::Sobol(s) => s.samples_per_pixel,
+            Sampler::Halton(s) => s.samples_per_pixel,
         }
     }
 
@@ -42,6 +47,7 @@ impl Sampler {
         match self {
             Sampler::Independent(s) => s.start_pixel_sample(pixel, index),
             Sampler::Sobol(s) => s.start_pixel_sample(pixel, index),
+            Sampler::Halton(s) => s.start_pixel_sample(pixel, index),
         }
     }
 
@@ -50,6 +56,7 @@ impl Sampler {
         match self {
             Sampler::Independent(s) => s.next_1d(),
             Sampler::Sobol(s) => s.next_1d(),
+            Sampler::Halton(s) => s.next_1d(),
         }
     }
 
@@ -58,6 +65,7 @@ impl Sampler {
         match self {
             Sampler::Independent(s) => s.next_2d(),
             Sampler::Sobol(s) => s.next_2d(),
+            Sampler::Halton(s) => s.next_2d(),
         }
     }
 
@@ -66,6 +74,7 @@ impl Sampler {
         match self {
             Sampler::Independent(s) => Sampler::Independent(IndependentSampler::new(spp, s.seed)),
             Sampler::Sobol(s) => Sampler::Sobol(SobolSampler::new(spp, s.seed)),
+            Sampler::Halton(s) => Sampler::Halton(HaltonSampler::new(spp, s.seed)),
         }
     }
 
@@ -76,18 +85,24 @@ impl Sampler {
                 Sampler::Independent(IndependentSampler::new(s.samples_per_pixel, seed))
             }
             Sampler::Sobol(s) => Sampler::Sobol(SobolSampler::new(s.samples_per_pixel, seed)),
+            Sampler::Halton(s) => Sampler::Halton(HaltonSampler::new(s.samples_per_pixel, seed)),
         }
     }
 
-    /// The same count and seed with another kind: `independent` or `sobol`.
+    /// The sampler kinds [`Sampler::with_kind`] knows.
+    pub const KINDS: &'static [&'static str] = &["independent", "sobol", "halton"];
+
+    /// The same count and seed with another kind: `independent`, `sobol` or `halton`.
     pub fn with_kind(&self, kind: &str) -> Option<Sampler> {
         let (spp, seed) = match self {
             Sampler::Independent(s) => (s.samples_per_pixel, s.seed),
             Sampler::Sobol(s) => (s.samples_per_pixel, s.seed),
+            Sampler::Halton(s) => (s.samples_per_pixel, s.seed),
         };
         match kind {
             "independent" => Some(Sampler::Independent(IndependentSampler::new(spp, seed))),
             "sobol" => Some(Sampler::Sobol(SobolSampler::new(spp, seed))),
+            "halton" => Some(Sampler::Halton(HaltonSampler::new(spp, seed))),
             _ => None,
         }
     }

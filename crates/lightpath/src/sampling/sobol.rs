@@ -118,7 +118,7 @@ fn owen_scramble(v: u32, seed: u32) -> u32 {
 /// [`owen_scramble`] of the value whose bits, reversed, are `x` (the van der Corput
 /// value of `i` is `i` reversed, so its scramble starts from `i` itself).
 #[inline]
-fn owen_scramble_reversed(mut x: u32, seed: u32) -> u32 {
+pub(super) fn owen_scramble_reversed(mut x: u32, seed: u32) -> u32 {
     x = x.wrapping_add(seed);
     x ^= x.wrapping_mul(0x6c50_b47c);
     x ^= x.wrapping_mul(0xb82f_1e52);
@@ -129,8 +129,7 @@ fn owen_scramble_reversed(mut x: u32, seed: u32) -> u32 {
 
 /// Element `i` of a pseudo-random permutation of 0..n chosen by `p` (Kensler,
 /// "Correlated Multi-Jittered Sampling", 2013): cycle-walking a hashed bijection.
-#[cfg(test)]
-fn permutation_element(mut i: u32, n: u32, p: u32) -> u32 {
+pub(super) fn permutation_element(mut i: u32, n: u32, p: u32) -> u32 {
     let w = bit_mask(n);
     loop {
         i = permutation_round(i, w, p);
