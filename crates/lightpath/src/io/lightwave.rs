@@ -1393,6 +1393,20 @@ pub fn default_accel(aov: Option<AovVariable>) -> AccelKind {
 mod tests {
     use super::*;
 
+    /// Loads a scene from XML text and renders it.
+    fn render_xml(xml: &str) -> crate::film::Image {
+        let loaded =
+            crate::io::load_scene_str(xml, Path::new("scene.xml"), &LoadOptions::default())
+                .unwrap();
+        let renderer = crate::render::Renderer {
+            scene: &loaded.scene,
+            camera: loaded.scene.camera.as_ref().unwrap(),
+            integrator: &loaded.integrator,
+            sampler: &loaded.sampler,
+        };
+        renderer.render(&|_| {}).unwrap().0
+    }
+
     fn temp_dir(name: &str) -> PathBuf {
         let d = std::env::temp_dir().join(format!("lightpath-lw-{}-{name}", std::process::id()));
         let _ = std::fs::remove_dir_all(&d);
@@ -1630,16 +1644,7 @@ mod tests {
                 <light type="area">{light}</light>
             </scene><sampler type="independent" count="64"/></integrator>"#
             );
-            let loaded =
-                crate::io::load_scene_str(&xml, Path::new("lamp.xml"), &LoadOptions::default())
-                    .unwrap();
-            let renderer = crate::render::Renderer {
-                scene: &loaded.scene,
-                camera: loaded.scene.camera.as_ref().unwrap(),
-                integrator: &loaded.integrator,
-                sampler: &loaded.sampler,
-            };
-            let image = renderer.render(&|_| {}).unwrap().0;
+            let image = render_xml(&xml);
             image.pixels.iter().map(|p| p.x as f64).sum::<f64>() / image.pixels.len() as f64
         };
         let lamp = r#"<instance id="lamp"><shape type="rectangle"/>
@@ -1669,16 +1674,7 @@ mod tests {
                     <transform><translate z="5"/></transform></instance>
             </scene><sampler type="independent" count="1"/></integrator>"#
             );
-            let loaded =
-                crate::io::load_scene_str(&xml, Path::new("aov.xml"), &LoadOptions::default())
-                    .unwrap();
-            let renderer = crate::render::Renderer {
-                scene: &loaded.scene,
-                camera: loaded.scene.camera.as_ref().unwrap(),
-                integrator: &loaded.integrator,
-                sampler: &loaded.sampler,
-            };
-            let image = renderer.render(&|_| {}).unwrap().0;
+            let image = render_xml(&xml);
             (image.get(4, 4), image.get(0, 0))
         };
         let close = |a: Vec3, b: Vec3| (a - b).length() < 0.05;

@@ -139,12 +139,7 @@ impl Reader {
         let mut tops = Vec::new();
         for child in wrapper.children() {
             if child.is_text() {
-                if child.text().is_some_and(|t| !t.trim().is_empty()) {
-                    return Err(Error::scene(
-                        self.node_location(doc, child, path),
-                        "unexpected text in scene file",
-                    ));
-                }
+                self.reject_text(doc, child, path)?;
             } else if child.is_element() {
                 tops.push(child);
             }
@@ -163,6 +158,22 @@ impl Reader {
                 Ok(Rc::new(node))
             }
         }
+    }
+
+    /// Text between elements must be whitespace.
+    fn reject_text(
+        &self,
+        doc: &roxmltree::Document,
+        text: roxmltree::Node,
+        path: &Path,
+    ) -> Result<()> {
+        if text.text().is_some_and(|t| !t.trim().is_empty()) {
+            return Err(Error::scene(
+                self.node_location(doc, text, path),
+                "unexpected text in scene file",
+            ));
+        }
+        Ok(())
     }
 
     fn node_location(
@@ -213,12 +224,7 @@ impl Reader {
         }
         for child in el.children() {
             if child.is_text() {
-                if child.text().is_some_and(|t| !t.trim().is_empty()) {
-                    return Err(Error::scene(
-                        self.node_location(doc, child, path),
-                        "unexpected text in scene file",
-                    ));
-                }
+                self.reject_text(doc, child, path)?;
                 continue;
             }
             if !child.is_element() {
