@@ -566,12 +566,7 @@ mod tests {
     }
 
     fn renderer(l: &LoadedScene) -> Renderer<'_> {
-        Renderer {
-            scene: &l.scene,
-            camera: l.scene.camera.as_ref().unwrap(),
-            integrator: &l.integrator,
-            sampler: &l.sampler,
-        }
+        l.renderer().unwrap()
     }
 
     fn bits(image: &Image) -> Vec<[u32; 3]> {

@@ -1398,13 +1398,7 @@ mod tests {
         let loaded =
             crate::io::load_scene_str(xml, Path::new("scene.xml"), &LoadOptions::default())
                 .unwrap();
-        let renderer = crate::render::Renderer {
-            scene: &loaded.scene,
-            camera: loaded.scene.camera.as_ref().unwrap(),
-            integrator: &loaded.integrator,
-            sampler: &loaded.sampler,
-        };
-        renderer.render(&|_| {}).unwrap().0
+        loaded.renderer().unwrap().render(&|_| {}).unwrap().0
     }
 
     fn temp_dir(name: &str) -> PathBuf {

@@ -1680,13 +1680,8 @@ mod tests {
                 </scene>"#
             );
             let loaded = load(&xml, &[]).unwrap();
-            let renderer = crate::render::Renderer {
-                scene: &loaded.scene,
-                camera: loaded.scene.camera.as_ref().unwrap(),
-                integrator: &loaded.integrator,
-                sampler: &loaded.sampler,
-            };
-            renderer.render(&|_| {}).unwrap().0.get(4, 4).x
+            let image = loaded.renderer().unwrap().render(&|_| {}).unwrap().0;
+            image.get(4, 4).x
         };
         let plain = centre_depth("");
         assert!((plain - 1.5).abs() < 0.05, "{plain}");
@@ -2203,13 +2198,7 @@ mod tests {
     }
 
     fn render(loaded: &LoadedScene) -> crate::film::Image {
-        let renderer = crate::render::Renderer {
-            scene: &loaded.scene,
-            camera: loaded.scene.camera.as_ref().unwrap(),
-            integrator: &loaded.integrator,
-            sampler: &loaded.sampler,
-        };
-        renderer.render(&|_| {}).unwrap().0
+        loaded.renderer().unwrap().render(&|_| {}).unwrap().0
     }
 
     /// The Mitsuba Cornell box renders as our lightwave transcription of it does.

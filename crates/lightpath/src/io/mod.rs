@@ -37,6 +37,19 @@ pub struct LoadedScene {
     pub path: PathBuf,
 }
 
+impl LoadedScene {
+    /// A renderer for the scene as loaded: its camera, integrator and sampler. `None`
+    /// when the scene has no camera.
+    pub fn renderer(&self) -> Option<crate::render::Renderer<'_>> {
+        Some(crate::render::Renderer {
+            scene: &self.scene,
+            camera: self.scene.camera.as_ref()?,
+            integrator: &self.integrator,
+            sampler: &self.sampler,
+        })
+    }
+}
+
 /// How to load a scene.
 #[derive(Debug, Clone, Default)]
 pub struct LoadOptions {

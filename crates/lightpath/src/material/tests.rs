@@ -1270,7 +1270,6 @@ fn parser_rejects_mistakes() {
 #[ignore = "needs the course's scenes: set LIGHTWAVE_PRACTICAL_3"]
 fn reference_scenes() {
     use crate::film::ImageErrors;
-    use crate::render::Renderer;
     let dir = std::env::var("LIGHTWAVE_PRACTICAL_3").expect("set LIGHTWAVE_PRACTICAL_3");
     let dir = std::path::Path::new(&dir);
     let mut failures = Vec::new();
@@ -1285,13 +1284,7 @@ fn reference_scenes() {
         let path = dir.join(format!("{name}.xml"));
         let loaded = crate::io::load_scene(&path, &crate::io::LoadOptions::default())
             .unwrap_or_else(|e| panic!("{e}"));
-        let renderer = Renderer {
-            scene: &loaded.scene,
-            camera: loaded.scene.camera.as_ref().unwrap(),
-            integrator: &loaded.integrator,
-            sampler: &loaded.sampler,
-        };
-        let (image, stats) = renderer.render(&|_| {}).unwrap();
+        let (image, stats) = loaded.renderer().unwrap().render(&|_| {}).unwrap();
         let reference =
             crate::io::image::read_image(&dir.join(format!("{name}_ref.exr")), None).unwrap();
         let e = ImageErrors::compute(&image, &reference).unwrap();
