@@ -121,6 +121,15 @@ struct Builder {
     images: HashMap<(PathBuf, bool), Arc<crate::film::Image>>,
 }
 
+/// A light's `weight`: how often next-event estimation picks it, relative to the others.
+fn light_weight(node: &Node) -> Result<f32> {
+    let weight = node.float_or("weight", 1.0)?;
+    if !(weight >= 0.0 && weight.is_finite()) {
+        return Err(node.error("light `weight` must be a non-negative number"));
+    }
+    Ok(weight)
+}
+
 fn expect_tag(node: &Node, tag: &str) -> Result<()> {
     if node.tag != tag {
         return Err(node.error(format!("expected <{tag}>, found <{}>", node.tag)));
@@ -347,8 +356,9 @@ impl Builder {
         let mut instances = Vec::new();
         let mut lights = Vec::new();
         let mut weights = Vec::new();
-        let mut area_lights: Vec<Rc<Node>> = Vec::new();
-        let mut placed: std::collections::HashSet<*const Node> = Default::default();
+        let mut area_lights: Vec<(Rc<Node>, f32)> = Vec::new();
+        // The scene's own instances, where each one's placements start in `instances`.
+        let mut placed: HashMap<*const Node, std::ops::Range<usize>> = HashMap::new();
         for child in &node.children {
             match child.tag.as_str() {
                 "camera" => {
@@ -358,21 +368,23 @@ impl Builder {
                     camera = Some(self.camera(child)?);
                 }
                 "instance" => {
-                    placed.insert(Rc::as_ptr(child));
+                    let start = instances.len();
                     instances.extend(self.instance(child, 0)?);
+                    placed.insert(Rc::as_ptr(child), start..instances.len());
                 }
                 // Shapes defined at scene level (with an id) are for later <ref>s.
                 "shape" | "bsdf" | "texture" if child.id.is_some() => {}
                 // lightwave's area light wraps the emitting instance, which is also
                 // geometry; every emitting instance is sampled as a light here.
                 "light" if child.type_name.as_deref() == Some("area") => {
+                    let weight = light_weight(child)?;
                     child.check_all_used()?;
                     self.check_children(child, &["instance"])?;
                     let inst = self.single_child(child, "instance")?;
                     if inst.children_tagged("emission").next().is_none() {
                         return Err(inst.error("the <instance> of an area light has no <emission>"));
                     }
-                    area_lights.push(inst);
+                    area_lights.push((inst, weight));
                 }
                 "light" => {
                     let (light, weight) = self.light(child)?;
@@ -388,8 +400,11 @@ impl Builder {
         // also a child of the scene (referred to by the light); an instance only inside
         // the light is seen by shadow rays alone: it lights the scene but neither blocks
         // nor reflects, and the camera does not see it.
-        for inst in area_lights {
-            if placed.contains(&Rc::as_ptr(&inst)) {
+        for (inst, weight) in area_lights {
+            if let Some(range) = placed.get(&Rc::as_ptr(&inst)) {
+                for placement in &mut instances[range.clone()] {
+                    placement.light_weight = weight;
+                }
                 continue;
             }
             for emitter in self.instance(&inst, 0)? {
@@ -407,7 +422,7 @@ impl Builder {
                     emitter.render_from_object,
                     emission,
                 )));
-                weights.push(1.0);
+                weights.push(weight);
             }
         }
         let camera = camera.ok_or_else(|| node.error("the scene has no <camera>"))?;
@@ -424,10 +439,7 @@ impl Builder {
 
     /// A light and its selection weight.
     fn light(&mut self, node: &Node) -> Result<(Light, f32)> {
-        let weight = node.float_or("weight", 1.0)?;
-        if weight < 0.0 {
-            return Err(node.error("light `weight` must not be negative"));
-        }
+        let weight = light_weight(node)?;
         let colour = |name: &str| -> Result<Option<Vec3>> { node.vec3(name) };
         let light = match node.type_name.as_deref() {
             Some("point") => {
@@ -1578,8 +1590,8 @@ mod tests {
             <camera type="perspective"/>
             <instance id="lamp"><shape type="sphere"/>
                 <emission type="lambertian"><texture name="emission" type="constant" value="2"/></emission></instance>
-            <light type="area"><ref id="lamp"/></light>
-            <light type="area"><instance><shape type="rectangle"/>
+            <light type="area" weight="0"><ref id="lamp"/></light>
+            <light type="area" weight="3"><instance><shape type="rectangle"/>
                 <emission type="lambertian"><texture name="emission" type="constant" value="1"/></emission></instance></light>
             <instance><shape type="rectangle"/><bsdf type="diffuse"/>
                 <texture name="normal" type="image" filename="n.exr" linear="true"/></instance>
@@ -1604,6 +1616,14 @@ mod tests {
             .collect();
         assert_eq!(areas.len(), 2);
         assert_eq!(areas.iter().filter(|&&p| p).count(), 1);
+        // The weights: the placed lamp is never picked, the unplaced light always.
+        let pick = |placed: bool| {
+            let i = (loaded.scene.lights.iter())
+                .position(|l| matches!(l, Light::Area(a) if a.placed == placed))
+                .unwrap();
+            loaded.scene.light_sampler.probability(i)
+        };
+        assert_eq!((pick(true), pick(false)), (0.0, 1.0));
         let normal_map = |i: usize| match inst[i].material.as_deref() {
             Some(Material::NormalMap(m)) => {
                 Some((m.normal.eval(Vec2::splat(0.25)), m.inner.clone()))

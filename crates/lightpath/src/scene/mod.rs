@@ -43,6 +43,9 @@ pub struct Instance {
     pub emission: Option<Emission>,
     /// Index in `Scene::lights` of the area light made from this instance.
     pub light: Option<u32>,
+    /// How often next-event estimation picks that light, relative to a weight of 1 (0:
+    /// never; its emission is then found by BSDF sampling alone).
+    pub light_weight: f32,
 }
 
 impl Instance {
@@ -55,6 +58,7 @@ impl Instance {
             material: None,
             emission: None,
             light: None,
+            light_weight: 1.0,
         }
     }
 
@@ -169,7 +173,7 @@ impl Scene {
 
     /// Sets the lights; `weights[i]` scales how often light `i` is picked for next-event
     /// estimation (0: never). Every instance with an emission becomes an area light of
-    /// weight 1 after them (area lights in `lights` are dropped, except those that are
+    /// its `light_weight` after them (area lights in `lights` are dropped, except those that are
     /// not scene geometry, [`AreaLight::unplaced`]). Fails if there is more than one
     /// environment.
     pub fn set_lights(&mut self, lights: Vec<Light>, weights: &[f32]) -> Result<(), String> {
@@ -193,7 +197,7 @@ impl Scene {
                     inst.render_from_object,
                     e.clone(),
                 )));
-                weights.push(1.0);
+                weights.push(inst.light_weight);
             }
         }
         let weights = &weights[..];
