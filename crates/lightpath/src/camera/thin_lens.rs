@@ -15,7 +15,8 @@
 //! ```
 //!
 //! The focal plane is the plane z = `focusDistance` in camera space; every ray through a
-//! given film point meets the pinhole ray through it there.
+//! given film point meets the pinhole ray through it there. `lensRadius` and
+//! `focalDistance` are accepted for `apertureRadius` and `focusDistance`.
 
 use super::{CameraSample, Perspective};
 use crate::math::Ray;

@@ -121,6 +121,22 @@ struct Builder {
     images: HashMap<(PathBuf, bool), Arc<crate::film::Image>>,
 }
 
+/// A float property that goes by several names (at most one given), or `default`.
+fn float_alias(node: &Node, names: &[&str], default: f32) -> Result<f32> {
+    let mut found: Option<(&str, f32)> = None;
+    for &name in names {
+        if let Some(v) = node.float(name)? {
+            if let Some((first, _)) = found {
+                return Err(node.error(format!(
+                    "`{first}` and `{name}` are the same property; give one"
+                )));
+            }
+            found = Some((name, v));
+        }
+    }
+    Ok(found.map_or(default, |(_, v)| v))
+}
+
 /// A light's `weight`: how often next-event estimation picks it, relative to the others.
 fn light_weight(node: &Node) -> Result<f32> {
     let weight = node.float_or("weight", 1.0)?;
@@ -968,8 +984,9 @@ impl Builder {
             Some("thinlens") => {
                 let fov = self.fov(node, 60.0, 180.0)?;
                 let axis = self.fov_axis(node)?;
-                let aperture_radius = node.float_or("apertureRadius", 0.0)?;
-                let focus_distance = node.float_or("focusDistance", 1.0)?;
+                // The course leaves the names to its students: the common spellings.
+                let aperture_radius = float_alias(node, &["apertureRadius", "lensRadius"], 0.0)?;
+                let focus_distance = float_alias(node, &["focusDistance", "focalDistance"], 1.0)?;
                 if aperture_radius < 0.0 || focus_distance <= 0.0 {
                     return Err(
                         node.error("thinlens needs apertureRadius >= 0 and focusDistance > 0")
@@ -1701,5 +1718,33 @@ mod tests {
         let (centre, corner) = render(r#"type="normals""#);
         assert!(close(centre, Vec3::new(0.5, 0.5, 0.0)), "{centre:?}");
         assert_eq!(corner, Vec3::splat(0.5));
+    }
+
+    /// The thin lens takes the aperture and focus under either common name, and refuses
+    /// both names at once.
+    #[test]
+    fn thin_lens_property_names() {
+        let camera = |props: &str| {
+            let xml = format!(
+                r#"<integrator type="direct"><scene><camera type="thinlens" {props}/></scene><sampler type="independent"/></integrator>"#
+            );
+            crate::io::load_scene_str(&xml, Path::new("lens.xml"), &LoadOptions::default()).map(
+                |l| match l.scene.camera {
+                    Some(Camera::ThinLens(t)) => (t.aperture_radius, t.focus_distance),
+                    _ => panic!("not a thin lens"),
+                },
+            )
+        };
+        assert_eq!(
+            camera(r#"apertureRadius="0.2" focusDistance="3""#).unwrap(),
+            (0.2, 3.0)
+        );
+        assert_eq!(
+            camera(r#"lensRadius="0.2" focalDistance="3""#).unwrap(),
+            (0.2, 3.0)
+        );
+        assert_eq!(camera("").unwrap(), (0.0, 1.0));
+        let e = camera(r#"lensRadius="0.2" apertureRadius="0.1""#).unwrap_err();
+        assert!(e.to_string().contains("same property"), "{e}");
     }
 }
