@@ -390,8 +390,8 @@ impl Builder {
                 }
                 // Shapes defined at scene level (with an id) are for later <ref>s.
                 "shape" | "bsdf" | "texture" if child.id.is_some() => {}
-                // lightwave's area light wraps the emitting instance, which is also
-                // geometry; every emitting instance is sampled as a light here.
+                // lightwave's area light names or holds the emitting instance it
+                // samples; which of the two is settled after the loop.
                 "light" if child.type_name.as_deref() == Some("area") => {
                     let weight = light_weight(child)?;
                     child.check_all_used()?;
