@@ -186,11 +186,6 @@ impl Light {
         }
     }
 
-    /// True for lights at a single point or direction (MIS cannot weight them).
-    pub fn is_delta(&self) -> bool {
-        !matches!(self, Light::Environment(_) | Light::Area(_))
-    }
-
     /// Whether rays that sample the BSDF can reach this light (then its next-event
     /// estimates are weighted by MIS against theirs): the environment and area lights
     /// that are scene geometry; not delta lights, nor area lights outside the scene.
