@@ -78,7 +78,12 @@ fn main() {
             // One line: the library's errors already carry file:line:col.
             let mut msg = format!("error: {e}");
             for cause in e.chain().skip(1) {
-                msg.push_str(&format!(": {cause}"));
+                // Errors that show their source in their own message (the library's
+                // I/O errors) would otherwise print it twice.
+                let cause = cause.to_string();
+                if !msg.contains(&cause) {
+                    msg.push_str(&format!(": {cause}"));
+                }
             }
             eprintln!("{msg}");
             std::process::exit(1);

@@ -149,7 +149,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     } else {
         let channels = render_aovs(&loaded, &args.options, rendered.spp, &layers)?;
         io::image::write_exr_channels(&args.output, &rendered.image, &channels)
-            .with_context(|| format!("writing {}", args.output.display()))?;
+            .context("writing the image")?;
     }
     let write_seconds = write_start.elapsed().as_secs_f64();
 

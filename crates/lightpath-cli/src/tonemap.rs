@@ -57,7 +57,8 @@ pub fn write(path: &Path, image: &Image, tone: &ToneArgs) -> Result<()> {
     } else {
         io::image::write_image(path, image)
     };
-    result.with_context(|| format!("writing {}", path.display()))
+    // The library's errors name the file.
+    result.context("writing the image")
 }
 
 #[derive(clap::Args)]

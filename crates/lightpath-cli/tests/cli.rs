@@ -120,6 +120,21 @@ fn missing_scene_file_is_an_error() {
     assert!(!dir.join("out.png").exists());
 }
 
+/// An output that cannot be written is one line naming the file and the reason once
+/// (the library's I/O error already carries both).
+#[test]
+fn unwritable_output_names_the_file_once() {
+    let dir = temp_dir("unwritable");
+    for name in ["missing/out.png", "missing/out.exr"] {
+        let out = lightpath(&["render", "--spp", "1", "-o", name], &dir);
+        assert!(!out.status.success(), "{name}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+        assert_eq!(stderr.matches(name).count(), 1, "{stderr}");
+        assert_eq!(stderr.matches("os error").count(), 1, "{stderr}");
+    }
+}
+
 #[test]
 fn own_test_scenes_pass() {
     let root = repo_root();
