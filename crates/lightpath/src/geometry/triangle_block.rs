@@ -54,8 +54,7 @@ impl TriangleBlock {
     #[inline(always)]
     pub fn intersect(&self, wr: &WatertightRay, t_min: f32, t_max: f32) -> (u32, Vec4, Vec4, Vec4) {
         let (kx, ky, kz) = wr.axes();
-        let o = wr.origin;
-        let (ox, oy, oz) = (Vec4::splat(o[kx]), Vec4::splat(o[ky]), Vec4::splat(o[kz]));
+        let [ox, oy, oz] = wr.origin_permuted().map(Vec4::splat);
         let s = wr.shear();
         let (sx, sy, sz) = (Vec4::splat(s.x), Vec4::splat(s.y), Vec4::splat(s.z));
         let p = &self.p;
@@ -156,12 +155,7 @@ pub unsafe fn intersect_pair_avx2(
 ) -> PairHits {
     use std::arch::x86_64::*;
     let (kx, ky, kz) = wr.axes();
-    let o = wr.origin;
-    let (ox, oy, oz) = (
-        _mm256_set1_ps(o[kx]),
-        _mm256_set1_ps(o[ky]),
-        _mm256_set1_ps(o[kz]),
-    );
+    let [ox, oy, oz] = wr.origin_permuted().map(|c| _mm256_set1_ps(c));
     let s = wr.shear();
     let (sx, sy, sz) = (
         _mm256_set1_ps(s.x),

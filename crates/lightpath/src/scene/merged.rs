@@ -178,7 +178,7 @@ impl MergedMesh {
             };
             self.parts[self.part[k] as usize].interaction(ray, &part_hit)
         };
-        si.wo = -ray.direction.normalize();
+        // The part's interaction has `wo` from the same ray already.
         si.instance = self.instance[k];
         si.prim = self.prim[k];
         si
