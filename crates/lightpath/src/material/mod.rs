@@ -340,7 +340,9 @@ impl Material {
 
     /// True when every lobe is a delta (a mirror or smooth glass): next-event estimation
     /// is useless there.
+    #[inline(always)]
     pub fn is_delta(&self) -> bool {
+        // The wrappers' recursion stays behind a call, so the rest inlines.
         match self {
             Material::Conductor(_) | Material::Dielectric(_) | Material::ThinDielectric(_) => true,
             Material::RoughDielectric(m) => m.is_pass_through(),
@@ -349,10 +351,21 @@ impl Material {
             | Material::Plastic(_)
             | Material::RoughPlastic(_)
             | Material::Principled(_) => false,
+            Material::TwoSided(_)
+            | Material::OneSided(_)
+            | Material::NormalMap(_)
+            | Material::Blend(_) => self.is_delta_wrapped(),
+        }
+    }
+
+    #[inline(never)]
+    fn is_delta_wrapped(&self) -> bool {
+        match self {
             Material::TwoSided(m) => m.inner.is_delta(),
             Material::OneSided(m) => m.inner.is_delta(),
             Material::NormalMap(m) => m.inner.is_delta(),
             Material::Blend(m) => m.first.is_delta() && m.second.is_delta(),
+            _ => self.is_delta(),
         }
     }
 }

@@ -34,8 +34,18 @@ pub struct TransformedTexture {
 
 impl Texture {
     /// The colour at texture coordinates `uv`.
-    #[inline]
+    #[inline(always)]
     pub fn eval(&self, uv: Vec2) -> Vec3 {
+        // Constants inline at the caller; the other kinds (and the recursion of
+        // transformed textures) stay behind a call.
+        match self {
+            Texture::Constant(c) => *c,
+            _ => self.eval_varying(uv),
+        }
+    }
+
+    #[inline(never)]
+    fn eval_varying(&self, uv: Vec2) -> Vec3 {
         match self {
             Texture::Constant(c) => *c,
             Texture::Image(t) => t.eval(uv),
