@@ -20,7 +20,7 @@ use crate::light::Light;
 use crate::math::Ray;
 use crate::sampling::Sampler;
 use crate::scene::Scene;
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec3A};
 
 #[derive(Debug, Clone)]
 pub struct PathTracer {
@@ -58,8 +58,10 @@ impl PathTracer {
         sampler: &mut Sampler,
         stats: &mut RayStats,
     ) -> Vec3 {
-        let mut l = Vec3::ZERO;
-        let mut beta = Vec3::ONE;
+        // Radiance and throughput in 4-lane arithmetic (the same operations per channel
+        // as with `Vec3`, bit for bit).
+        let mut l = Vec3A::ZERO;
+        let mut beta = Vec3A::ONE;
         let mut ray = *camera_ray;
         let mut prev: Option<Previous> = None;
         let mut depth = 1u32;
@@ -68,7 +70,7 @@ impl PathTracer {
                 let dir = ray.direction.normalize();
                 let le = scene.background(dir);
                 if le != Vec3::ZERO {
-                    l += beta * le * self.environment_mis(scene, prev.as_ref(), dir);
+                    l += beta * Vec3A::from(le) * self.environment_mis(scene, prev.as_ref(), dir);
                 }
                 break;
             };
@@ -84,7 +86,7 @@ impl PathTracer {
                         }
                         _ => 1.0,
                     };
-                    l += beta * le * mis;
+                    l += beta * Vec3A::from(le) * mis;
                 }
             }
             if depth >= self.max_depth {
@@ -122,7 +124,7 @@ impl PathTracer {
                                 } else {
                                     power_heuristic(pick * ls.pdf, bsdf.pdf_local(wi_local))
                                 };
-                                l += beta * f * ls.weight * (mis / pick);
+                                l += beta * Vec3A::from(f) * Vec3A::from(ls.weight) * (mis / pick);
                             }
                         }
                     }
@@ -135,8 +137,8 @@ impl PathTracer {
             let Some(bs) = bsdf.sample(u_lobe, u_dir) else {
                 break;
             };
-            beta *= bs.weight;
-            if beta == Vec3::ZERO || !beta.is_finite() {
+            beta *= Vec3A::from(bs.weight);
+            if beta == Vec3A::ZERO || !beta.is_finite() {
                 break;
             }
             prev = Some(Previous {
@@ -154,6 +156,7 @@ impl PathTracer {
                 beta /= q;
             }
         }
+        let l = Vec3::from(l);
         match self.clamp {
             Some(c) => l.min(Vec3::splat(c)),
             None => l,

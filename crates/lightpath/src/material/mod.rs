@@ -69,7 +69,7 @@ pub use twosided::TwoSided;
 use crate::geometry::SurfaceInteraction;
 use crate::math::Frame;
 use crate::texture::Texture;
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec3A};
 
 /// A sampled direction.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -110,13 +110,15 @@ pub enum Material {
 /// parallel to `n`, zero or not finite.
 #[inline]
 pub fn frame_from_normal_and_tangent(n: Vec3, tangent: Vec3) -> Frame {
-    let t = tangent - n * n.dot(tangent);
+    // In 4-lane arithmetic: the same operations as with `Vec3`, bit for bit.
+    let (na, tangent) = (Vec3A::from(n), Vec3A::from(tangent));
+    let t = tangent - na * na.dot(tangent);
     let len2 = t.length_squared();
     if len2.is_finite() && len2 > 1e-8 * tangent.length_squared() && len2 > 0.0 {
         let s = t / len2.sqrt();
         Frame {
-            s,
-            t: n.cross(s),
+            s: s.into(),
+            t: na.cross(s).into(),
             n,
         }
     } else {

@@ -1,6 +1,6 @@
 //! Orthonormal frames, built with the branchless basis of Duff et al. 2017.
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 
 /// An orthonormal basis `(s, t, n)`; `to_local`/`to_world` change coordinates.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -30,7 +30,13 @@ impl Frame {
 
     #[inline]
     pub fn to_world(&self, v: Vec3) -> Vec3 {
-        self.s * v.x + self.t * v.y + self.n * v.z
+        // In 4-lane arithmetic: the same operations as with `Vec3`, bit for bit.
+        let (s, t, n) = (
+            Vec3A::from(self.s),
+            Vec3A::from(self.t),
+            Vec3A::from(self.n),
+        );
+        (s * v.x + t * v.y + n * v.z).into()
     }
 }
 
