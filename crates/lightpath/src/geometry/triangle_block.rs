@@ -189,15 +189,7 @@ pub unsafe fn intersect_pair_avx2(
     );
     if _mm256_movemask_ps(is_zero) != 0 {
         // Exactly zero edge functions: the 4-lane path falls back to the scalar test.
-        let (ba, ta, ua, va) = a.intersect(wr, t_min, t_max);
-        let (bb, tb, ub, vb) = b.intersect(wr, t_min, t_max);
-        let join = |x: Vec4, y: Vec4| {
-            let mut out = [0.0; 8];
-            out[..4].copy_from_slice(&x.to_array());
-            out[4..].copy_from_slice(&y.to_array());
-            out
-        };
-        return (ba | bb << 4, join(ta, tb), join(ua, ub), join(va, vb));
+        return pair_by_blocks(a, b, wr, t_min, t_max);
     }
     let lt = |x| _mm256_cmp_ps::<_CMP_LT_OQ>(x, zero);
     let gt = |x| _mm256_cmp_ps::<_CMP_GT_OQ>(x, zero);
@@ -283,6 +275,28 @@ pub unsafe fn intersect_pair_avx2(
         store(mul(e1, inv_det)),
         store(mul(e2, inv_det)),
     )
+}
+
+/// [`intersect_pair_avx2`]'s rare case, one block at a time: out of line, so that the
+/// common path need not keep its loaded vertices for it.
+#[cold]
+#[inline(never)]
+fn pair_by_blocks(
+    a: &TriangleBlock,
+    b: &TriangleBlock,
+    wr: &WatertightRay,
+    t_min: f32,
+    t_max: f32,
+) -> PairHits {
+    let (ba, ta, ua, va) = a.intersect(wr, t_min, t_max);
+    let (bb, tb, ub, vb) = b.intersect(wr, t_min, t_max);
+    let join = |x: Vec4, y: Vec4| {
+        let mut out = [0.0; 8];
+        out[..4].copy_from_slice(&x.to_array());
+        out[4..].copy_from_slice(&y.to_array());
+        out
+    };
+    (ba | bb << 4, join(ta, tb), join(ua, ub), join(va, vb))
 }
 
 /// The nearest of the lanes in `bits` (the lowest lane among equal distances).
