@@ -177,15 +177,15 @@ pub fn intersect_triangle_watertight(
 #[inline(always)]
 fn take_nearest<T: std::ops::Index<usize, Output = f32>>(
     b: usize,
-    (bits, t, b1, b2): (u32, T, T, T),
+    (bits, t, b1, b2): &(u32, T, T, T),
     order: &[u32],
     t_max: &mut f32,
     closest: &mut Option<(f32, usize, Vec2)>,
 ) -> bool {
-    if bits == 0 {
+    if *bits == 0 {
         return false;
     }
-    let lane = nearest_lane(bits, &t);
+    let lane = nearest_lane(*bits, t);
     *t_max = t[lane];
     let at = b * BLOCK + lane;
     prefetch_line(order.as_ptr().wrapping_add(at));
@@ -410,12 +410,12 @@ impl TriangleMesh {
                                 *t_max,
                             )
                         };
-                        found |= take_nearest(b, hits, order, t_max, &mut closest);
+                        found |= take_nearest(b, &hits, order, t_max, &mut closest);
                         b += 2;
                     }
                     while b < end {
                         let hits = self.blocks[b].intersect(wr, ray.t_min, *t_max);
-                        found |= take_nearest(b, hits, order, t_max, &mut closest);
+                        found |= take_nearest(b, &hits, order, t_max, &mut closest);
                         b += 1;
                     }
                     found
