@@ -47,8 +47,6 @@ pub struct TriangleMesh {
 #[derive(Debug, Clone, Copy)]
 pub struct WatertightRay {
     pub origin: Vec3,
-    /// The origin's components in the permuted order `(kx, ky, kz)`.
-    origin_k: [f32; 3],
     kx: usize,
     ky: usize,
     kz: usize,
@@ -72,10 +70,8 @@ impl WatertightRay {
         // Indexing an array, not the vector (whose index is a three-way branch).
         let da = d.to_array();
         let (dx, dy, dz) = (da[kx], da[ky], da[kz]);
-        let oa = ray.origin.to_array();
         WatertightRay {
             origin: ray.origin,
-            origin_k: [oa[kx], oa[ky], oa[kz]],
             kx,
             ky,
             kz,
@@ -89,10 +85,12 @@ impl WatertightRay {
         (self.kx, self.ky, self.kz)
     }
 
-    /// The origin's components `(o[kx], o[ky], o[kz])`.
+    /// The origin's components `(o[kx], o[ky], o[kz])` (indexing an array, not the
+    /// vector, whose index is a three-way branch).
     #[inline(always)]
     pub fn origin_permuted(&self) -> [f32; 3] {
-        self.origin_k
+        let o = self.origin.to_array();
+        [o[self.kx], o[self.ky], o[self.kz]]
     }
 
     /// The shear `(-dx/dz, -dy/dz, 1/dz)` of the permuted direction.

@@ -111,8 +111,6 @@ pub struct Scene {
     unbounded: Vec<u32>,
     /// Meshes used by one instance each, flattened into render-space meshes.
     merged: Vec<MergedMesh>,
-    /// Whether the merged meshes are all the geometry (no other instances).
-    only_merged: bool,
     pub camera: Option<Camera>,
     /// The film's pixel reconstruction filter.
     pub filter: crate::film::Filter,
@@ -157,14 +155,12 @@ impl Scene {
             )
             .fold(Bounds3::EMPTY, |a, b| a.union(b));
         let light_sampler = LightSampler::new(&[], &[], &bounds);
-        let only_merged = bounded.is_empty() && unbounded.is_empty();
         Scene {
             instances,
             tlas,
             bounded,
             unbounded,
             merged,
-            only_merged,
             camera,
             filter: crate::film::Filter::Box,
             clip: None,
@@ -283,7 +279,7 @@ impl Scene {
         stats: &mut RayStats,
     ) -> Option<SurfaceInteraction> {
         stats.rays += 1;
-        if let ([m], true) = (&self.merged[..], self.only_merged) {
+        if let ([m], true) = (&self.merged[..], self.only_merged()) {
             // All the geometry in one merged mesh (the common case of scenes made of
             // triangle meshes): one query, no instance bookkeeping.
             let hit = m.intersect(ray, stats)?;
@@ -339,6 +335,12 @@ impl Scene {
         Some(si)
     }
 
+    /// Whether the merged meshes are all the geometry (no other instances).
+    #[inline]
+    fn only_merged(&self) -> bool {
+        self.bounded.is_empty() && self.unbounded.is_empty()
+    }
+
     /// Whether anything blocks the ray within its range (shadow rays).
     pub fn occluded(&self, ray: &Ray) -> bool {
         self.occluded_with_stats(ray, &mut RayStats::default())
@@ -348,7 +350,7 @@ impl Scene {
     pub fn occluded_with_stats(&self, ray: &Ray, stats: &mut RayStats) -> bool {
         stats.rays += 1;
         stats.shadow_rays += 1;
-        if let ([m], true) = (&self.merged[..], self.only_merged) {
+        if let ([m], true) = (&self.merged[..], self.only_merged()) {
             return m.occluded(ray, stats);
         }
         if self.merged.iter().any(|m| m.occluded(ray, stats)) {
