@@ -48,6 +48,11 @@ pub struct BenchArgs {
     /// count's square root.
     #[arg(long, value_name = "W")]
     pub heatmap_width: Option<usize>,
+    /// Also time the stream queries (256 rays per call, several in flight at a time in
+    /// the 8-wide BVH; ray by ray elsewhere), as embree-bench's `--stream` times
+    /// `rtcIntersect1M`: JSON under `traversal.st.stream`, `traversal.mt.stream`.
+    #[arg(long)]
+    pub stream: bool,
 }
 
 const SETS: [(&str, bool); 4] = [
@@ -62,10 +67,38 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
-/// Milliseconds of one pass over the rays; counts into `stats`.
-fn pass(mesh: &TriangleMesh, rays: &[Ray], occluded: bool, threads: usize) -> (f64, u64) {
+/// Rays per stream call (as embree-bench's `--stream` passes 256 rays per
+/// `rtcIntersect1M`).
+const STREAM_CHUNK: usize = 256;
+
+/// Milliseconds of one pass over the rays and the number of hits: ray by ray, or with
+/// `stream` in calls of [`STREAM_CHUNK`] rays to the stream queries.
+fn pass(
+    mesh: &TriangleMesh,
+    rays: &[Ray],
+    occluded: bool,
+    threads: usize,
+    stream: bool,
+) -> (f64, u64) {
     let start = Instant::now();
-    let hits = if threads == 1 {
+    let hits = if stream {
+        let chunk = |c: &[Ray]| {
+            if occluded {
+                let mut h = vec![false; c.len()];
+                mesh.occluded_stream(c, &mut h, &mut RayStats::default());
+                h.iter().filter(|&&x| x).count()
+            } else {
+                let mut h = vec![None; c.len()];
+                mesh.intersect_stream(c, &mut h, &mut RayStats::default());
+                h.iter().filter(|x| x.is_some()).count()
+            }
+        };
+        if threads == 1 {
+            rays.chunks(STREAM_CHUNK).map(chunk).sum()
+        } else {
+            rays.par_chunks(STREAM_CHUNK).map(chunk).sum()
+        }
+    } else if threads == 1 {
         rays.iter().filter(|r| trace(mesh, r, occluded)).count()
     } else {
         rays.par_iter().filter(|r| trace(mesh, r, occluded)).count()
@@ -178,49 +211,61 @@ pub fn run(args: BenchArgs) -> Result<()> {
             );
         }
         let mut traversal = serde_json::Map::new();
-        let mut line = [String::new(), String::new()];
+        let mut line = vec![String::new(); if args.stream { 4 } else { 2 }];
         for (variant, threads) in [("st", 1usize), ("mt", all)] {
             let mut per_set = serde_json::Map::new();
+            let mut stream_sets = serde_json::Map::new();
             for (set, occluded, rays) in &sets {
-                let run_pass = || pass(&mesh, rays, *occluded, threads);
-                let (_, hits) = if threads == 1 {
-                    single.install(run_pass)
-                } else {
-                    run_pass()
-                };
-                let times: Vec<f64> = (0..args.reps)
-                    .map(|_| {
-                        if threads == 1 {
-                            single.install(run_pass).0
-                        } else {
-                            run_pass().0
-                        }
-                    })
-                    .collect();
-                let best = times.iter().cloned().fold(f64::INFINITY, f64::min);
-                let ms = median(times);
-                let mrays = rays.len() as f64 / (ms * 1e3);
-                per_set.insert(
-                    set.to_string(),
-                    json!({
+                for stream in [false, true] {
+                    if stream && !args.stream {
+                        continue;
+                    }
+                    let run_pass = || pass(&mesh, rays, *occluded, threads, stream);
+                    let (_, hits) = if threads == 1 {
+                        single.install(run_pass)
+                    } else {
+                        run_pass()
+                    };
+                    let times: Vec<f64> = (0..args.reps)
+                        .map(|_| {
+                            if threads == 1 {
+                                single.install(run_pass).0
+                            } else {
+                                run_pass().0
+                            }
+                        })
+                        .collect();
+                    let best = times.iter().cloned().fold(f64::INFINITY, f64::min);
+                    let ms = median(times);
+                    let mrays = rays.len() as f64 / (ms * 1e3);
+                    let mut entry = json!({
                         "query": if *occluded { "occluded" } else { "closest_hit" },
                         "rays": rays.len(),
                         "hits": hits,
                         "ms_median": ms,
                         "mrays_per_s_median": mrays,
                         "mrays_per_s_best": rays.len() as f64 / (best * 1e3),
-                    }),
-                );
-                if threads == 1 {
-                    // Traversal cost, counted in a separate untimed pass.
-                    let (nodes, prims) = cost_per_ray(&mesh, rays, *occluded);
-                    let entry = per_set[*set].as_object_mut().expect("inserted above");
-                    entry.insert("nodes_visited_per_ray".into(), json!(nodes));
-                    entry.insert("prims_tested_per_ray".into(), json!(prims));
+                    });
+                    if threads == 1 && !stream {
+                        // Traversal cost, counted in a separate untimed pass.
+                        let (nodes, prims) = cost_per_ray(&mesh, rays, *occluded);
+                        let e = entry.as_object_mut().expect("an object");
+                        e.insert("nodes_visited_per_ray".into(), json!(nodes));
+                        e.insert("prims_tested_per_ray".into(), json!(prims));
+                    }
+                    if stream {
+                        stream_sets.insert(set.to_string(), entry);
+                    } else {
+                        per_set.insert(set.to_string(), entry);
+                    }
+                    line[usize::from(threads != 1) + 2 * usize::from(stream)] +=
+                        &format!(" {mrays:>8.2}");
                 }
-                line[usize::from(threads != 1)] += &format!(" {mrays:>8.2}");
             }
             per_set.insert("threads".into(), json!(threads));
+            if args.stream {
+                per_set.insert("stream".into(), Value::Object(stream_sets));
+            }
             traversal.insert(variant.into(), Value::Object(per_set));
         }
         let build_median = median(build_ms);
@@ -237,6 +282,9 @@ pub fn run(args: BenchArgs) -> Result<()> {
             sah,
             line[1]
         );
+        if args.stream {
+            println!("{:>41}|{}\n{:<41}|{}", "stream", line[2], "", line[3]);
+        }
         report.insert(
             name.clone(),
             json!({

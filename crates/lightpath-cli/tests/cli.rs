@@ -375,7 +375,7 @@ fn rays_command_traces_ray_files() {
 
 /// `lightpath bench` times every accelerator on the ray sets found in a folder and
 /// writes embree-bench's key layout as JSON, with each set's hit count the same for
-/// every accelerator.
+/// every accelerator, ray by ray and (`--stream`) through the stream queries.
 #[test]
 fn bench_command_times_ray_sets() {
     let dir = temp_dir("bench");
@@ -406,7 +406,7 @@ fn bench_command_times_ray_sets() {
     let out = lightpath(
         &[
             "bench", "m.obj", "--rays", ".", "--accel", "list", "--accel", "bvh2", "--accel",
-            "bvh4", "--reps", "2", "--json", "b.json",
+            "bvh4", "--accel", "bvh8", "--reps", "2", "--stream", "--json", "b.json",
         ],
         &dir,
     );
@@ -422,7 +422,7 @@ fn bench_command_times_ray_sets() {
             .as_u64()
             .unwrap()
     };
-    for accel in ["list", "bvh2", "bvh4"] {
+    for accel in ["list", "bvh2", "bvh4", "bvh8"] {
         assert!(json["accels"][accel]["build"]["ms_median"]
             .as_f64()
             .is_some());
@@ -434,6 +434,11 @@ fn bench_command_times_ray_sets() {
                         .is_some_and(|m| m > 0.0)
                 );
                 assert_eq!(hits(accel, v, set), hits("list", "st", set));
+                let stream = &json["accels"][accel]["traversal"][v]["stream"][set];
+                assert!(stream["mrays_per_s_median"]
+                    .as_f64()
+                    .is_some_and(|m| m > 0.0));
+                assert_eq!(stream["hits"].as_u64(), Some(hits("list", "st", set)));
             }
         }
     }

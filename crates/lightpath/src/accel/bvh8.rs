@@ -26,6 +26,16 @@
 //! lying in a slab's plane (0·∞ = NaN) is inside that slab. There is no separate test
 //! of the root's own box: a ray that misses it misses all the root's children, which
 //! costs one node test.
+//!
+//! Streams ([`Bvh8::intersect_stream`], [`Bvh8::occluded_stream`]): a ray that wanders
+//! over a mesh larger than the caches waits at almost every node for memory, and the
+//! next node's address depends on the data it waits for, so one ray cannot overlap its
+//! own misses. The stream traversals keep [`STREAM_GROUP`] rays in flight: each takes
+//! one step (a node test or a leaf), prefetches the node or leaf it goes to next and
+//! hands over to the next ray, so that the misses of the group overlap. Each ray visits
+//! the same nodes and leaves in the same order as it would alone, so the answers are
+//! the single-ray ones; the price is the state saved and restored at every step, which
+//! makes streams slower where the data is in cache (coherent rays, small meshes).
 
 use super::bvh::{has_zero_component, BuildSettings, Bvh};
 use super::collapse::{any_prim, build_binary, collapse, each_prim, wide_cover, EMPTY};
@@ -637,6 +647,341 @@ impl Bvh8 {
     }
 }
 
+/// Rays in flight at once in a stream traversal (see [`Bvh8::intersect_stream`]).
+pub const STREAM_GROUP: usize = 8;
+
+/// One ray of a stream traversal in flight: the state that the single-ray loop keeps in
+/// registers, kept here between its steps, and the caller's per-ray state `user`.
+struct Flight<X> {
+    lanes: RayLanes,
+    t_max: f32,
+    axis_parallel: bool,
+    any: bool,
+    ray: usize,
+    cur: Entry,
+    /// The top of this ray's stack (its slot's `STACK_SIZE` entries of the stream's
+    /// stack buffer).
+    sp: usize,
+    user: X,
+}
+
+impl<X> Flight<X> {
+    fn new(ray: &Ray, index: usize, root: (u32, u32), user: X) -> Flight<X> {
+        Flight {
+            lanes: RayLanes::new(ray),
+            t_max: ray.t_max,
+            axis_parallel: has_zero_component(ray.direction),
+            any: false,
+            ray: index,
+            cur: Entry {
+                child: root.0,
+                count: root.1,
+                dist: ray.t_min,
+            },
+            sp: 0,
+            user,
+        }
+    }
+
+    /// Takes the next ray into this slot and returns the previous ray's state.
+    fn restart(&mut self, ray: &Ray, index: usize, root: (u32, u32), user: X) -> X {
+        self.lanes = RayLanes::new(ray);
+        self.t_max = ray.t_max;
+        self.axis_parallel = has_zero_component(ray.direction);
+        self.any = false;
+        self.ray = index;
+        self.cur = Entry {
+            child: root.0,
+            count: root.1,
+            dist: ray.t_min,
+        };
+        self.sp = 0;
+        std::mem::replace(&mut self.user, user)
+    }
+}
+
+impl Bvh8 {
+    /// Closest hits of many rays, [`STREAM_GROUP`] of them in flight at a time: each
+    /// ray takes one step (a node or a leaf), starts loading the node or leaf it goes to
+    /// next, and hands over to the next ray, so that the cache misses of several rays
+    /// overlap instead of each ray waiting for its own. Visits, for each ray, the same
+    /// nodes and leaves in the same order as [`Bvh8::intersect_leaves`], so it finds the
+    /// same hits.
+    ///
+    /// Per ray, `init(ray)` makes the caller's state, `leaf(&mut state, ray, first,
+    /// count, &mut t_max)` is the leaf test (as in [`Bvh8::intersect_leaves`]), and
+    /// `done(ray, state, any)` receives the state when the ray's traversal ends.
+    pub fn intersect_stream<X, P, I, F, D>(
+        &self,
+        rays: &[Ray],
+        stats: &mut RayStats,
+        prefetch_leaf: P,
+        init: I,
+        leaf: F,
+        done: D,
+    ) where
+        P: Fn(u32),
+        I: FnMut(usize) -> X,
+        F: FnMut(&mut X, &Ray, u32, u32, &mut f32) -> bool,
+        D: FnMut(usize, X, bool),
+    {
+        self.stream::<false, X, P, I, F, D>(rays, stats, prefetch_leaf, init, leaf, done)
+    }
+
+    /// Any hits of many rays, several in flight at a time (see
+    /// [`Bvh8::intersect_stream`]); `blocks(&mut state, ray, first, count)` says whether
+    /// a primitive of the leaf blocks the ray, and `done(ray, state, occluded)` receives
+    /// the answer.
+    pub fn occluded_stream<X, P, I, F, D>(
+        &self,
+        rays: &[Ray],
+        stats: &mut RayStats,
+        prefetch_leaf: P,
+        init: I,
+        mut blocks: F,
+        done: D,
+    ) where
+        P: Fn(u32),
+        I: FnMut(usize) -> X,
+        F: FnMut(&mut X, &Ray, u32, u32) -> bool,
+        D: FnMut(usize, X, bool),
+    {
+        let leaf = |x: &mut X, ray: &Ray, first, count, _: &mut f32| blocks(x, ray, first, count);
+        self.stream::<true, X, P, I, _, D>(rays, stats, prefetch_leaf, init, leaf, done)
+    }
+
+    fn stream<const ANY_HIT: bool, X, P, I, F, D>(
+        &self,
+        rays: &[Ray],
+        stats: &mut RayStats,
+        prefetch_leaf: P,
+        mut init: I,
+        leaf: F,
+        mut done: D,
+    ) where
+        P: Fn(u32),
+        I: FnMut(usize) -> X,
+        F: FnMut(&mut X, &Ray, u32, u32, &mut f32) -> bool,
+        D: FnMut(usize, X, bool),
+    {
+        if self.prim_order.is_empty() {
+            for i in 0..rays.len() {
+                done(i, init(i), false);
+            }
+            return;
+        }
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: AVX2 was detected when the tree was built.
+            return unsafe {
+                self.stream_avx2::<ANY_HIT, X, P, I, F, D>(
+                    rays,
+                    stats,
+                    prefetch_leaf,
+                    init,
+                    leaf,
+                    done,
+                )
+            };
+        }
+        self.stream_impl::<Portable, ANY_HIT, X, P, I, F, D>(
+            rays,
+            stats,
+            prefetch_leaf,
+            init,
+            leaf,
+            done,
+        )
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn stream_avx2<const ANY_HIT: bool, X, P, I, F, D>(
+        &self,
+        rays: &[Ray],
+        stats: &mut RayStats,
+        prefetch_leaf: P,
+        init: I,
+        leaf: F,
+        done: D,
+    ) where
+        P: Fn(u32),
+        I: FnMut(usize) -> X,
+        F: FnMut(&mut X, &Ray, u32, u32, &mut f32) -> bool,
+        D: FnMut(usize, X, bool),
+    {
+        self.stream_impl::<Avx2, ANY_HIT, X, P, I, F, D>(
+            rays,
+            stats,
+            prefetch_leaf,
+            init,
+            leaf,
+            done,
+        )
+    }
+
+    #[inline(always)]
+    fn stream_impl<T: NodeTest, const ANY_HIT: bool, X, P, I, F, D>(
+        &self,
+        rays: &[Ray],
+        stats: &mut RayStats,
+        prefetch_leaf: P,
+        mut init: I,
+        mut leaf: F,
+        mut done: D,
+    ) where
+        P: Fn(u32),
+        I: FnMut(usize) -> X,
+        F: FnMut(&mut X, &Ray, u32, u32, &mut f32) -> bool,
+        D: FnMut(usize, X, bool),
+    {
+        let group = STREAM_GROUP.min(rays.len());
+        // One stack per slot, uninitialised (entries are written before they are read).
+        let mut stack: Vec<MaybeUninit<Entry>> = Vec::with_capacity(group * STACK_SIZE);
+        // SAFETY: `MaybeUninit` entries need no initialisation.
+        unsafe { stack.set_len(group * STACK_SIZE) };
+        let mut flights: Vec<(Flight<X>, usize)> = (0..group)
+            .map(|i| (Flight::new(&rays[i], i, self.root, init(i)), i * STACK_SIZE))
+            .collect();
+        let mut next = flights.len();
+        // Counted here and added to `stats` at the end (see `intersect_impl`).
+        let mut counts = (0u32, 0u32);
+        while !flights.is_empty() {
+            let mut s = 0;
+            while s < flights.len() {
+                let (f, base) = &mut flights[s];
+                let base = *base;
+                if self.stream_step::<T, ANY_HIT, X, P, F>(
+                    f,
+                    &mut stack[base..base + STACK_SIZE],
+                    &rays[f.ray],
+                    &prefetch_leaf,
+                    &mut leaf,
+                    &mut counts,
+                ) {
+                    s += 1;
+                    continue;
+                }
+                let (ray, any) = (f.ray, f.any);
+                if next < rays.len() {
+                    let user = f.restart(&rays[next], next, self.root, init(next));
+                    next += 1;
+                    done(ray, user, any);
+                    s += 1;
+                } else {
+                    let (f, _) = flights.swap_remove(s);
+                    done(ray, f.user, any);
+                }
+            }
+        }
+        stats.nodes_visited += counts.0;
+        stats.prims_tested += counts.1;
+    }
+
+    /// One step of a ray in flight: visits its current node or leaf and moves on to the
+    /// next one, which it starts loading; returns false when the ray's traversal is over.
+    /// The order of visits is the single-ray loops' (`intersect_impl`, `occluded_impl`).
+    #[inline(always)]
+    fn stream_step<T: NodeTest, const ANY_HIT: bool, X, P, F>(
+        &self,
+        f: &mut Flight<X>,
+        stack: &mut [MaybeUninit<Entry>],
+        ray: &Ray,
+        prefetch_leaf: &P,
+        leaf: &mut F,
+        counts: &mut (u32, u32),
+    ) -> bool
+    where
+        P: Fn(u32),
+        F: FnMut(&mut X, &Ray, u32, u32, &mut f32) -> bool,
+    {
+        counts.0 += 1;
+        let cur = f.cur;
+        if cur.count > 0 {
+            counts.1 += cur.count;
+            if leaf(&mut f.user, ray, cur.child, cur.count, &mut f.t_max) {
+                f.any = true;
+                if ANY_HIT {
+                    return false;
+                }
+            }
+        } else {
+            let node = &self.nodes[cur.child as usize];
+            let mut near = [0.0f32; 8];
+            let mask = if f.axis_parallel {
+                T::test::<true>(node, &f.lanes, ray.t_min, f.t_max, &mut near)
+            } else {
+                T::test::<false>(node, &f.lanes, ray.t_min, f.t_max, &mut near)
+            };
+            if mask != 0 {
+                let entry = |k: u32| Entry {
+                    child: node.child[k as usize],
+                    count: node.count[k as usize],
+                    dist: if ANY_HIT { 0.0 } else { near[k as usize] },
+                };
+                let a = entry(mask.trailing_zeros());
+                let rest = mask & (mask - 1);
+                let next = if rest == 0 {
+                    a
+                } else if ANY_HIT {
+                    let mut bits = rest;
+                    while bits != 0 {
+                        let e = entry(bits.trailing_zeros());
+                        bits &= bits - 1;
+                        self.prefetch(e.child, e.count, prefetch_leaf);
+                        stack[f.sp].write(e);
+                        f.sp += 1;
+                    }
+                    a
+                } else {
+                    let b = entry(rest.trailing_zeros());
+                    if rest & (rest - 1) == 0 {
+                        let (n, far) = if a.dist <= b.dist { (a, b) } else { (b, a) };
+                        self.prefetch(far.child, far.count, prefetch_leaf);
+                        stack[f.sp].write(far);
+                        f.sp += 1;
+                        n
+                    } else {
+                        // Pushed sorted by decreasing distance, the nearest taken.
+                        let base = f.sp;
+                        let mut bits = mask;
+                        while bits != 0 {
+                            let e = entry(bits.trailing_zeros());
+                            bits &= bits - 1;
+                            self.prefetch(e.child, e.count, prefetch_leaf);
+                            let mut i = f.sp;
+                            // SAFETY: entries base..sp were written above.
+                            while i > base && unsafe { stack[i - 1].assume_init() }.dist < e.dist {
+                                stack[i] = stack[i - 1];
+                                i -= 1;
+                            }
+                            stack[i].write(e);
+                            f.sp += 1;
+                        }
+                        f.sp -= 1;
+                        // SAFETY: written in the loop above.
+                        unsafe { stack[f.sp].assume_init() }
+                    }
+                };
+                self.prefetch(next.child, next.count, prefetch_leaf);
+                f.cur = next;
+                return true;
+            }
+        }
+        // Pop the next entry that can still hold a closer hit.
+        while f.sp > 0 {
+            f.sp -= 1;
+            // SAFETY: every entry below `sp` was written before `sp` passed it.
+            let e = unsafe { stack[f.sp].assume_init() };
+            if ANY_HIT || e.dist <= f.t_max {
+                f.cur = e;
+                return true;
+            }
+        }
+        false
+    }
+}
+
 fn detect_avx2() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
@@ -700,6 +1045,126 @@ mod tests {
         // The accelerator enum reaches the same tree.
         let accel = Accel::Bvh8(fast);
         assert!(accel.leaf_order().is_some());
+    }
+
+    /// The stream traversals visit, for every ray, the same leaves in the same order as
+    /// the single-ray ones and end with the same answers and counters, with either node
+    /// test, for streams shorter and longer than the group in flight.
+    #[test]
+    fn streams_match_single_rays() {
+        let boxes = crate::accel::bvh::tests::random_boxes(3000, 5);
+        let fast = Bvh8::build(&boxes, &BuildSettings::default());
+        let portable = fast.clone().without_avx2();
+        let mut rng = crate::sampling::Pcg32::new(8, 1);
+        let rays: Vec<Ray> = (0..700)
+            .map(|i| {
+                let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 14.0 - 2.0;
+                let mut d = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5;
+                if i % 5 == 0 {
+                    d.x = 0.0;
+                }
+                let mut ray = Ray::new(o, d);
+                if i % 7 == 0 {
+                    ray.t_min = 0.5;
+                    ray.t_max = 4.0;
+                }
+                ray
+            })
+            .collect();
+        // A leaf "hits" its primitives whose index is a multiple of 3, at the distance
+        // of their box centre, and blocks rays when one is a multiple of 5.
+        let leaf_hit = |ray: &Ray, first: u32, count: u32, t_max: &mut f32, t: &Bvh8| {
+            let mut found = false;
+            for &p in &t.prim_order[first as usize..(first + count) as usize] {
+                let d = (boxes[p as usize].center() - ray.origin).length();
+                if p % 3 == 0 && d < *t_max && d >= ray.t_min {
+                    *t_max = d;
+                    found = true;
+                }
+            }
+            found
+        };
+        let blocks = |first: u32, count: u32, t: &Bvh8| {
+            t.prim_order[first as usize..(first + count) as usize]
+                .iter()
+                .any(|&p| p % 5 == 0)
+        };
+        for tree in [&fast, &portable] {
+            for n in [0, 1, 3, STREAM_GROUP, STREAM_GROUP + 1, rays.len()] {
+                let all = n == rays.len();
+                let rays = &rays[..n];
+                let mut single = Vec::new();
+                let mut single_stats = RayStats::default();
+                for ray in rays {
+                    let mut seen = Vec::new();
+                    let mut t_max = ray.t_max;
+                    let any = tree.intersect_leaves(
+                        ray,
+                        &mut single_stats,
+                        |_| {},
+                        |f, c, t| {
+                            seen.push((f, c));
+                            let hit = leaf_hit(ray, f, c, t, tree);
+                            t_max = *t;
+                            hit
+                        },
+                    );
+                    let mut occ_seen = Vec::new();
+                    let occ = tree.occluded_leaves(
+                        ray,
+                        &mut single_stats,
+                        |_| {},
+                        |f, c| {
+                            occ_seen.push((f, c));
+                            blocks(f, c, tree)
+                        },
+                    );
+                    single.push((seen, any, t_max.to_bits(), occ_seen, occ));
+                }
+                let mut stream = vec![(Vec::new(), false, 0u32, Vec::new(), false); n];
+                let mut stream_stats = RayStats::default();
+                tree.intersect_stream(
+                    rays,
+                    &mut stream_stats,
+                    |_| {},
+                    |i| (Vec::new(), rays[i].t_max),
+                    |(seen, t_max): &mut (Vec<(u32, u32)>, f32), ray, f, c, t| {
+                        seen.push((f, c));
+                        let hit = leaf_hit(ray, f, c, t, tree);
+                        *t_max = *t;
+                        hit
+                    },
+                    |i, (seen, t_max), any| {
+                        stream[i].0 = seen;
+                        stream[i].1 = any;
+                        stream[i].2 = t_max.to_bits();
+                    },
+                );
+                tree.occluded_stream(
+                    rays,
+                    &mut stream_stats,
+                    |_| {},
+                    |_| Vec::new(),
+                    |seen: &mut Vec<(u32, u32)>, _, f, c| {
+                        seen.push((f, c));
+                        blocks(f, c, tree)
+                    },
+                    |i, seen, occ| {
+                        stream[i].3 = seen;
+                        stream[i].4 = occ;
+                    },
+                );
+                assert_eq!(single, stream, "{n} rays");
+                assert_eq!(
+                    (single_stats.nodes_visited, single_stats.prims_tested),
+                    (stream_stats.nodes_visited, stream_stats.prims_tested)
+                );
+                if all {
+                    assert!(single.iter().filter(|s| s.1).count() > 50);
+                    assert!(single.iter().filter(|s| s.4).count() > 50);
+                }
+            }
+        }
     }
 
     #[test]

@@ -18,12 +18,12 @@ mod list;
 mod memory;
 pub mod octree;
 #[cfg(test)]
-mod testing;
+pub(crate) mod testing;
 mod wide_bvh;
 
 pub use bsp::{Bsp, BspNode};
 pub use bvh::{Bvh, BvhNode, BvhStats};
-pub use bvh8::{Bvh8, Bvh8Node};
+pub use bvh8::{Bvh8, Bvh8Node, STREAM_GROUP};
 pub use grid::Grid;
 pub use kdtree::{KdNode, KdTree};
 pub use list::ListAccel;

@@ -392,31 +392,7 @@ impl TriangleMesh {
             self.accel
                 .intersect_leaves(ray, stats, prefetch, |first, count, t_max| {
                     let wr = &*lazy_wr.get_or_insert_with(|| WatertightRay::new(ray));
-                    let mut found = false;
-                    let mut b = first as usize / BLOCK;
-                    let end = (first + count).div_ceil(BLOCK as u32) as usize;
-                    // Two blocks at a time with 8-lane AVX2 where the processor has it.
-                    #[cfg(target_arch = "x86_64")]
-                    while self.avx2 && b + 1 < end {
-                        // SAFETY: `avx2` is set only where the processor supports AVX2.
-                        let hits = unsafe {
-                            intersect_pair_avx2(
-                                &self.blocks[b],
-                                &self.blocks[b + 1],
-                                wr,
-                                ray.t_min,
-                                *t_max,
-                            )
-                        };
-                        found |= take_nearest(b, &hits, order, t_max, &mut closest);
-                        b += 2;
-                    }
-                    while b < end {
-                        let hits = self.blocks[b].intersect(wr, ray.t_min, *t_max);
-                        found |= take_nearest(b, &hits, order, t_max, &mut closest);
-                        b += 1;
-                    }
-                    found
+                    self.leaf_closest(wr, ray.t_min, first, count, t_max, order, &mut closest)
                 });
             return closest.map(|(t, at, uv)| ShapeHit {
                 t,
@@ -444,6 +420,131 @@ impl TriangleMesh {
         best
     }
 
+    /// The closest-hit test of a whole leaf (positions `first..first + count` of the
+    /// accelerator's leaf order), block by block: lowers `t_max` and records the hit in
+    /// `closest` for a closer one.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn leaf_closest(
+        &self,
+        wr: &WatertightRay,
+        t_min: f32,
+        first: u32,
+        count: u32,
+        t_max: &mut f32,
+        order: &[u32],
+        closest: &mut Option<(f32, usize, Vec2)>,
+    ) -> bool {
+        let mut found = false;
+        let mut b = first as usize / BLOCK;
+        let end = (first + count).div_ceil(BLOCK as u32) as usize;
+        // Two blocks at a time with 8-lane AVX2 where the processor has it.
+        #[cfg(target_arch = "x86_64")]
+        while self.avx2 && b + 1 < end {
+            // SAFETY: `avx2` is set only where the processor supports AVX2.
+            let hits = unsafe {
+                intersect_pair_avx2(&self.blocks[b], &self.blocks[b + 1], wr, t_min, *t_max)
+            };
+            found |= take_nearest(b, &hits, order, t_max, closest);
+            b += 2;
+        }
+        while b < end {
+            let hits = self.blocks[b].intersect(wr, t_min, *t_max);
+            found |= take_nearest(b, &hits, order, t_max, closest);
+            b += 1;
+        }
+        found
+    }
+
+    /// Whether a triangle of a whole leaf blocks `ray` (the any-hit test of the leaf at
+    /// positions `first..first + count`).
+    #[inline(always)]
+    fn leaf_blocks(&self, wr: &WatertightRay, ray: &Ray, first: u32, count: u32) -> bool {
+        let mut b = first as usize / BLOCK;
+        let end = (first + count).div_ceil(BLOCK as u32) as usize;
+        #[cfg(target_arch = "x86_64")]
+        while self.avx2 && b + 1 < end {
+            let (x, y) = (&self.blocks[b], &self.blocks[b + 1]);
+            // SAFETY: `avx2` is set only where the processor supports AVX2.
+            if unsafe { intersect_pair_avx2(x, y, wr, ray.t_min, ray.t_max) }.0 != 0 {
+                return true;
+            }
+            b += 2;
+        }
+        while b < end {
+            if self.blocks[b].intersect(wr, ray.t_min, ray.t_max).0 != 0 {
+                return true;
+            }
+            b += 1;
+        }
+        false
+    }
+
+    /// Closest hits of many rays at once (`hits[i]` for `rays[i]`), the same as
+    /// [`TriangleMesh::intersect`] ray by ray. With the 8-wide BVH several rays are in
+    /// flight at a time, so that their cache misses overlap
+    /// ([`crate::accel::Bvh8::intersect_stream`]); other accelerators go ray by ray.
+    pub fn intersect_stream(
+        &self,
+        rays: &[Ray],
+        hits: &mut [Option<ShapeHit>],
+        stats: &mut RayStats,
+    ) {
+        assert_eq!(rays.len(), hits.len(), "one hit per ray");
+        let (Accel::Bvh8(bvh), Some(order)) = (&self.accel, self.accel.leaf_order()) else {
+            for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
+                *hit = self.intersect(ray, stats);
+            }
+            return;
+        };
+        // A BVH8 mesh always has its blocks (see `TriangleMesh::new`).
+        debug_assert!(!self.blocks.is_empty() || order.is_empty());
+        // Per ray: the watertight constants (set up at its first leaf) and the closest
+        // hit as (t, leaf position, barycentrics).
+        type State = (Option<WatertightRay>, Option<(f32, usize, Vec2)>);
+        bvh.intersect_stream(
+            rays,
+            stats,
+            |first| self.prefetch_block(first),
+            |_| -> State { (None, None) },
+            |(wr, closest), ray, first, count, t_max| {
+                let wr = &*wr.get_or_insert_with(|| WatertightRay::new(ray));
+                self.leaf_closest(wr, ray.t_min, first, count, t_max, order, closest)
+            },
+            |i, (_, closest), _| {
+                hits[i] = closest.map(|(t, at, uv)| ShapeHit {
+                    t,
+                    prim: order[at],
+                    uv,
+                });
+            },
+        );
+    }
+
+    /// Any hits of many rays at once (`occluded[i]` for `rays[i]`), the same as
+    /// [`TriangleMesh::occluded`] ray by ray, several in flight at a time with the
+    /// 8-wide BVH (see [`TriangleMesh::intersect_stream`]).
+    pub fn occluded_stream(&self, rays: &[Ray], occluded: &mut [bool], stats: &mut RayStats) {
+        assert_eq!(rays.len(), occluded.len(), "one answer per ray");
+        let Accel::Bvh8(bvh) = &self.accel else {
+            for (ray, o) in rays.iter().zip(occluded.iter_mut()) {
+                *o = self.occluded(ray, stats);
+            }
+            return;
+        };
+        bvh.occluded_stream(
+            rays,
+            stats,
+            |first| self.prefetch_block(first),
+            |_| None,
+            |wr: &mut Option<WatertightRay>, ray, first, count| {
+                let wr = &*wr.get_or_insert_with(|| WatertightRay::new(ray));
+                self.leaf_blocks(wr, ray, first, count)
+            },
+            |i, _, any| occluded[i] = any,
+        );
+    }
+
     /// Any hit through the mesh's BVH.
     #[inline]
     pub fn occluded(&self, ray: &Ray, stats: &mut RayStats) -> bool {
@@ -454,18 +555,7 @@ impl TriangleMesh {
                 .accel
                 .occluded_leaves(ray, stats, prefetch, |first, count| {
                     let wr = &*lazy_wr.get_or_insert_with(|| WatertightRay::new(ray));
-                    let mut b = first as usize / BLOCK;
-                    let end = (first + count).div_ceil(BLOCK as u32) as usize;
-                    #[cfg(target_arch = "x86_64")]
-                    while self.avx2 && b + 1 < end {
-                        let (x, y) = (&self.blocks[b], &self.blocks[b + 1]);
-                        // SAFETY: `avx2` is set only where the processor supports AVX2.
-                        if unsafe { intersect_pair_avx2(x, y, wr, ray.t_min, ray.t_max) }.0 != 0 {
-                            return true;
-                        }
-                        b += 2;
-                    }
-                    (b..end).any(|b| self.blocks[b].intersect(wr, ray.t_min, ray.t_max).0 != 0)
+                    self.leaf_blocks(wr, ray, first, count)
                 });
         }
         let wr = WatertightRay::new(ray);
@@ -726,6 +816,65 @@ mod tests {
     /// scalar test, on a random triangle soup, a closed sphere and a flat grid, with
     /// rays along the axes and limited ranges. Where two triangles share the hit
     /// distance exactly (an edge), either may be reported.
+    /// The stream queries answer every ray exactly as the single-ray ones do (distance,
+    /// triangle and barycentrics to the bit, occlusion, traversal counters), through the
+    /// 8-wide BVH's stream traversal and through the ray-by-ray fallback of the other
+    /// accelerators.
+    #[test]
+    fn streams_match_ray_by_ray() {
+        let tris = crate::accel::testing::random_soup(4000, 12);
+        let soup = MeshData {
+            positions: tris.iter().flatten().copied().collect(),
+            normals: vec![],
+            uvs: vec![],
+            indices: (0..tris.len() as u32)
+                .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+                .collect(),
+        };
+        let rays = crate::accel::testing::rays_for(&tris, 3000, 4);
+        for kind in [AccelKind::Bvh8, AccelKind::Bvh4, AccelKind::Bvh2] {
+            let mesh = TriangleMesh::new(soup.clone(), false, kind).unwrap();
+            let mut single_stats = RayStats::default();
+            let single: Vec<_> = rays
+                .iter()
+                .map(|r| mesh.intersect(r, &mut single_stats))
+                .collect();
+            let single_occ: Vec<_> = rays
+                .iter()
+                .map(|r| mesh.occluded(r, &mut single_stats))
+                .collect();
+            let mut stats = RayStats::default();
+            let mut hits = vec![None; rays.len()];
+            let mut occ = vec![false; rays.len()];
+            // In uneven pieces, so that streams start and end part-way.
+            for (r, h) in rays.chunks(777).zip(hits.chunks_mut(777)) {
+                mesh.intersect_stream(r, h, &mut stats);
+            }
+            for (r, o) in rays.chunks(500).zip(occ.chunks_mut(500)) {
+                mesh.occluded_stream(r, o, &mut stats);
+            }
+            let bits = |h: &Option<ShapeHit>| {
+                h.map(|h| (h.t.to_bits(), h.prim, h.uv.to_array().map(f32::to_bits)))
+            };
+            assert_eq!(
+                single.iter().map(bits).collect::<Vec<_>>(),
+                hits.iter().map(bits).collect::<Vec<_>>(),
+                "{kind:?}"
+            );
+            assert_eq!(single_occ, occ, "{kind:?}");
+            assert_eq!(
+                (single_stats.nodes_visited, single_stats.prims_tested),
+                (stats.nodes_visited, stats.prims_tested),
+                "{kind:?}"
+            );
+            assert!(
+                hits.iter().filter(|h| h.is_some()).count() > 500,
+                "{kind:?}"
+            );
+            assert!(occ.iter().filter(|&&o| !o).count() > 100, "{kind:?}");
+        }
+    }
+
     #[test]
     fn simd_blocks_match_the_scalar_list() {
         let mut rng = Pcg32::new(21, 4);
