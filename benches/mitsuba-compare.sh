@@ -28,8 +28,11 @@ mitsuba() { # variant spp out.exr -> prints seconds
         -D max_depth=8 -D res=256 -o "$3" --json "$3.json" >/dev/null 2>&1
     "$PY" -c "import json,sys; d=json.load(open(sys.argv[1])); print(d['render_s'])" "$3.json"
 }
+# lightpath renders Mitsuba's own scene file (our Mitsuba 3 reader), so both renderers
+# run the same scene with the same path tracer settings (rr_depth 5, box pixel filter);
+# only the sampler is ours to choose.
 lightpath() { # sampler spp out.exr -> prints seconds
-    "$LP" render benches/scenes/cbox.xml -D spp="$2" -D depth=8 -D res=256 -D sampler="$1" \
+    "$LP" render "$MI_SCENE" -D spp="$2" -D max_depth=8 -D res=256 --sampler "$1" \
         --threads 2 -o "$3" -q --stats-json "$3.json"
     "$PY" -c "import json,sys; print(json.load(open(sys.argv[1]))['seconds']['render'])" "$3.json"
 }
