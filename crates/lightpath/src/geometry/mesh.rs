@@ -19,6 +19,49 @@ use crate::accel::{Accel, AccelKind, RayStats};
 use crate::math::{gamma, unit, Bounds3, Frame, Ray};
 use glam::{Vec2, Vec3, Vec3A};
 
+/// The closest-hit query over a mesh's SIMD blocks, as a macro so that it expands both
+/// in [`TriangleMesh::intersect`] and inside the AVX2 function
+/// [`TriangleMesh::intersect_blocks_avx2`]: the leaf closure, which the traversal does not
+/// inline, is then itself compiled for AVX2 (closures inherit their function's target
+/// features), with three-operand arithmetic and the 8-lane pair test inlined. No FMA is
+/// enabled, so both expansions round alike.
+macro_rules! intersect_blocks {
+    ($mesh:expr, $ray:expr, $stats:expr, $order:expr) => {{
+        let (mesh, ray, order): (&TriangleMesh, &Ray, &[u32]) = ($mesh, $ray, $order);
+        // The watertight test's constants are set up at the first leaf, so rays that
+        // reach none (most of those that miss) never pay for them.
+        let mut lazy_wr = None;
+        // The closest hit as (t, leaf position, barycentrics); the triangle's index is
+        // looked up once at the end, its cache line prefetched when the hit is found.
+        let mut closest: Option<(f32, usize, Vec2)> = None;
+        let prefetch = |first| mesh.prefetch_block(first);
+        mesh.accel
+            .intersect_leaves(ray, $stats, prefetch, |first, count, t_max| {
+                let wr = &*lazy_wr.get_or_insert_with(|| WatertightRay::new(ray));
+                mesh.leaf_closest(wr, ray.t_min, first, count, t_max, order, &mut closest)
+            });
+        closest.map(|(t, at, uv)| ShapeHit {
+            t,
+            prim: order[at],
+            uv,
+        })
+    }};
+}
+
+/// The any-hit query over a mesh's SIMD blocks (see [`intersect_blocks`]).
+macro_rules! occluded_blocks {
+    ($mesh:expr, $ray:expr, $stats:expr) => {{
+        let (mesh, ray): (&TriangleMesh, &Ray) = ($mesh, $ray);
+        let prefetch = |first| mesh.prefetch_block(first);
+        let mut lazy_wr = None;
+        mesh.accel
+            .occluded_leaves(ray, $stats, prefetch, |first, count| {
+                let wr = &*lazy_wr.get_or_insert_with(|| WatertightRay::new(ray));
+                mesh.leaf_blocks(wr, ray, first, count)
+            })
+    }};
+}
+
 /// A triangle mesh in object space and its acceleration structure.
 #[derive(Debug, Clone)]
 pub struct TriangleMesh {
@@ -382,23 +425,12 @@ impl TriangleMesh {
     #[inline]
     pub fn intersect(&self, ray: &Ray, stats: &mut RayStats) -> Option<ShapeHit> {
         if let Some(order) = self.accel.leaf_order().filter(|_| !self.blocks.is_empty()) {
-            // The watertight test's constants are set up at the first leaf, so rays that
-            // reach none (most of those that miss) never pay for them.
-            let mut lazy_wr = None;
-            // The closest hit as (t, leaf position, barycentrics); the triangle's index is
-            // looked up once at the end, its cache line prefetched when the hit is found.
-            let mut closest: Option<(f32, usize, Vec2)> = None;
-            let prefetch = |first| self.prefetch_block(first);
-            self.accel
-                .intersect_leaves(ray, stats, prefetch, |first, count, t_max| {
-                    let wr = &*lazy_wr.get_or_insert_with(|| WatertightRay::new(ray));
-                    self.leaf_closest(wr, ray.t_min, first, count, t_max, order, &mut closest)
-                });
-            return closest.map(|(t, at, uv)| ShapeHit {
-                t,
-                prim: order[at],
-                uv,
-            });
+            #[cfg(target_arch = "x86_64")]
+            if self.avx2 {
+                // SAFETY: `avx2` is set only where the processor supports AVX2.
+                return unsafe { self.intersect_blocks_avx2(ray, stats, order) };
+            }
+            return intersect_blocks!(self, ray, stats, order);
         }
         let wr = WatertightRay::new(ray);
         let mut best = None;
@@ -418,6 +450,25 @@ impl TriangleMesh {
             }
         });
         best
+    }
+
+    /// [`TriangleMesh::intersect`] over the SIMD blocks, compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn intersect_blocks_avx2(
+        &self,
+        ray: &Ray,
+        stats: &mut RayStats,
+        order: &[u32],
+    ) -> Option<ShapeHit> {
+        intersect_blocks!(self, ray, stats, order)
+    }
+
+    /// [`TriangleMesh::occluded`] over the SIMD blocks, compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn occluded_blocks_avx2(&self, ray: &Ray, stats: &mut RayStats) -> bool {
+        occluded_blocks!(self, ray, stats)
     }
 
     /// The closest-hit test of a whole leaf (positions `first..first + count` of the
@@ -549,14 +600,12 @@ impl TriangleMesh {
     #[inline]
     pub fn occluded(&self, ray: &Ray, stats: &mut RayStats) -> bool {
         if !self.blocks.is_empty() {
-            let prefetch = |first| self.prefetch_block(first);
-            let mut lazy_wr = None;
-            return self
-                .accel
-                .occluded_leaves(ray, stats, prefetch, |first, count| {
-                    let wr = &*lazy_wr.get_or_insert_with(|| WatertightRay::new(ray));
-                    self.leaf_blocks(wr, ray, first, count)
-                });
+            #[cfg(target_arch = "x86_64")]
+            if self.avx2 {
+                // SAFETY: `avx2` is set only where the processor supports AVX2.
+                return unsafe { self.occluded_blocks_avx2(ray, stats) };
+            }
+            return occluded_blocks!(self, ray, stats);
         }
         let wr = WatertightRay::new(ray);
         self.accel.occluded(ray, stats, |prim| {
