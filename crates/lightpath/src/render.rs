@@ -184,7 +184,7 @@ impl Renderer<'_> {
     /// The camera ray of the pixel's current sample: its film position drawn from the
     /// scene's pixel filter, then cut to the scene's near and far clip distances (along
     /// the camera's viewing axis) when it has them.
-    #[inline]
+    #[inline(always)]
     fn camera_ray(&self, pixel: UVec2, sampler: &mut Sampler) -> Option<Ray> {
         let film = self.scene.filter.film_position(
             pixel.as_vec2(),
@@ -373,6 +373,39 @@ impl Renderer<'_> {
 
     /// The new sums of a tile's pixels; `None` once the pass is abandoned.
     fn render_tile(
+        &self,
+        x0: u32,
+        y0: u32,
+        job: &PassJob,
+        sums: &[Vec3],
+        abandoned: &AtomicBool,
+    ) -> Option<(Vec<Vec3>, RenderStats)> {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor supports AVX2 (checked on the line above).
+            return unsafe { self.render_tile_avx2(x0, y0, job, sums, abandoned) };
+        }
+        self.render_tile_body(x0, y0, job, sums, abandoned)
+    }
+
+    /// [`Renderer::render_tile`] compiled for AVX2: the path tracer and what inlines
+    /// into it run as three-operand (VEX) code. No FMA is enabled, so the image is the
+    /// same, bit for bit, as the baseline build's.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn render_tile_avx2(
+        &self,
+        x0: u32,
+        y0: u32,
+        job: &PassJob,
+        sums: &[Vec3],
+        abandoned: &AtomicBool,
+    ) -> Option<(Vec<Vec3>, RenderStats)> {
+        self.render_tile_body(x0, y0, job, sums, abandoned)
+    }
+
+    #[inline(always)]
+    fn render_tile_body(
         &self,
         x0: u32,
         y0: u32,

@@ -422,7 +422,7 @@ impl TriangleMesh {
     }
 
     /// Closest hit through the mesh's BVH.
-    #[inline]
+    #[inline(always)]
     pub fn intersect(&self, ray: &Ray, stats: &mut RayStats) -> Option<ShapeHit> {
         if let Some(order) = self.accel.leaf_order().filter(|_| !self.blocks.is_empty()) {
             #[cfg(target_arch = "x86_64")]
@@ -614,6 +614,7 @@ impl TriangleMesh {
         })
     }
 
+    #[inline(always)]
     pub fn interaction(&self, ray: &Ray, hit: &ShapeHit) -> SurfaceInteraction {
         // The vector arithmetic runs in 4-lane `Vec3A`s: the same operations per
         // component, in the same order, as with `Vec3` (dot products add x, y, then z),

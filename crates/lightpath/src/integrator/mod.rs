@@ -30,7 +30,7 @@ pub enum Integrator {
 
 impl Integrator {
     /// The value carried by a camera ray.
-    #[inline]
+    #[inline(always)]
     pub fn li(
         &self,
         scene: &Scene,

@@ -51,6 +51,7 @@ struct Previous {
 }
 
 impl PathTracer {
+    #[inline(always)]
     pub fn li(
         &self,
         scene: &Scene,

@@ -260,7 +260,7 @@ impl AreaLight {
     }
 
     /// `sample_general` for a flat triangle mesh, from its precomputed triangles.
-    #[inline]
+    #[inline(always)]
     fn sample_flat_mesh(&self, mesh: &FlatMeshEmitter, p: Vec3, u: Vec2) -> Option<LightSample> {
         // As the mesh's own `sample_area`: the triangle from `u.x`, reused inside it.
         let (prim, ux) = mesh.distribution.sample_reuse(u.x);

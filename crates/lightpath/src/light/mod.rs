@@ -142,6 +142,7 @@ impl Light {
     /// cuboid's face, a cylinder's side or cap), `u` the point on it. Triangle meshes
     /// pick their triangle with `u.x` and reuse it inside the triangle instead, so that a
     /// stratified `u` stays stratified over the whole mesh.
+    #[inline(always)]
     pub fn sample(&self, p: Vec3, u_prim: f32, u: glam::Vec2) -> Option<LightSample> {
         match self {
             Light::Point(l) => point_sample(l.position, l.intensity, p),

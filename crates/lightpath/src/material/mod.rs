@@ -258,7 +258,17 @@ impl Material {
     }
 
     /// f·|cos θi| in the local shading frame.
+    #[inline(always)]
     pub fn eval_local(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> Vec3 {
+        // Diffuse inline at the caller (the common case), the rest behind a call.
+        match self {
+            Material::Diffuse(m) => m.eval(uv, wo, wi),
+            _ => self.eval_local_other(uv, wo, wi),
+        }
+    }
+
+    #[inline(never)]
+    fn eval_local_other(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> Vec3 {
         match self {
             Material::Diffuse(m) => m.eval(uv, wo, wi),
             Material::Conductor(m) => m.eval(uv, wo, wi),
@@ -277,7 +287,17 @@ impl Material {
     }
 
     /// The sampling density in the local shading frame.
+    #[inline(always)]
     pub fn pdf_local(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> f32 {
+        // Diffuse inline at the caller (the common case), the rest behind a call.
+        match self {
+            Material::Diffuse(m) => m.pdf(uv, wo, wi),
+            _ => self.pdf_local_other(uv, wo, wi),
+        }
+    }
+
+    #[inline(never)]
+    fn pdf_local_other(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> f32 {
         match self {
             Material::Diffuse(m) => m.pdf(uv, wo, wi),
             Material::Conductor(m) => m.pdf(uv, wo, wi),
@@ -296,7 +316,17 @@ impl Material {
     }
 
     /// Samples in the local shading frame (`wi` is local too).
+    #[inline(always)]
     pub fn sample_local(&self, uv: Vec2, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        // Diffuse inline at the caller (the common case), the rest behind a call.
+        match self {
+            Material::Diffuse(m) => m.sample(uv, wo, u_lobe, u),
+            _ => self.sample_local_other(uv, wo, u_lobe, u),
+        }
+    }
+
+    #[inline(never)]
+    fn sample_local_other(&self, uv: Vec2, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         match self {
             Material::Diffuse(m) => m.sample(uv, wo, u_lobe, u),
             Material::Conductor(m) => m.sample(uv, wo, u_lobe, u),

@@ -167,6 +167,7 @@ impl MergedMesh {
     }
 
     /// The render-space interaction of a hit, naming the original instance and triangle.
+    #[inline(always)]
     pub fn interaction(&self, ray: &Ray, hit: &ShapeHit) -> SurfaceInteraction {
         let k = hit.prim as usize;
         let mut si = if self.parts.is_empty() {

@@ -273,6 +273,7 @@ impl Scene {
 
     /// The closest hit, counting traversal work into `stats`. The interaction's `wo` is
     /// exactly `-ray.direction.normalize()`.
+    #[inline(always)]
     pub fn intersect_with_stats(
         &self,
         ray: &Ray,
@@ -347,6 +348,7 @@ impl Scene {
     }
 
     /// `occluded`, counting the ray into `stats`.
+    #[inline(always)]
     pub fn occluded_with_stats(&self, ray: &Ray, stats: &mut RayStats) -> bool {
         stats.rays += 1;
         stats.shadow_rays += 1;
