@@ -124,7 +124,7 @@ impl FlatMeshEmitter {
 /// Written so that its divisions wait only on the distance's square root, not on each
 /// other (this runs at every path vertex): `1/(area_pdf · dist²)` starts alongside the
 /// root, then `1/dist` and `dist/|n·d|` together.
-#[inline]
+#[inline(always)]
 fn towards_area_point(
     p: Vec3,
     q: Vec3,
