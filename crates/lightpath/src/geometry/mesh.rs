@@ -12,7 +12,7 @@
 //! ```
 
 #[cfg(target_arch = "x86_64")]
-use super::triangle_block::intersect_pair_avx2;
+use super::triangle_block::{intersect_pair_avx2, intersect_pair_inline};
 use super::triangle_block::{nearest_lane, TriangleBlock, BLOCK};
 use super::{MeshData, ShapeHit, SurfaceInteraction};
 use crate::accel::{Accel, AccelKind, RayStats};
@@ -26,7 +26,7 @@ use glam::{Vec2, Vec3, Vec3A};
 /// features), with three-operand arithmetic and the 8-lane pair test inlined. No FMA is
 /// enabled, so both expansions round alike.
 macro_rules! intersect_blocks {
-    ($mesh:expr, $ray:expr, $stats:expr, $order:expr) => {{
+    ($mesh:expr, $ray:expr, $stats:expr, $order:expr, $avx2:expr) => {{
         let (mesh, ray, order): (&TriangleMesh, &Ray, &[u32]) = ($mesh, $ray, $order);
         // The watertight test's constants are set up at the first leaf, so rays that
         // reach none (most of those that miss) never pay for them.
@@ -38,7 +38,15 @@ macro_rules! intersect_blocks {
         mesh.accel
             .intersect_leaves(ray, $stats, prefetch, |first, count, t_max| {
                 let wr = &*lazy_wr.get_or_insert_with(|| WatertightRay::new(ray));
-                mesh.leaf_closest(wr, ray.t_min, first, count, t_max, order, &mut closest)
+                mesh.leaf_closest::<{ $avx2 }>(
+                    wr,
+                    ray.t_min,
+                    first,
+                    count,
+                    t_max,
+                    order,
+                    &mut closest,
+                )
             });
         closest.map(|(t, at, uv)| ShapeHit {
             t,
@@ -50,14 +58,14 @@ macro_rules! intersect_blocks {
 
 /// The any-hit query over a mesh's SIMD blocks (see [`intersect_blocks`]).
 macro_rules! occluded_blocks {
-    ($mesh:expr, $ray:expr, $stats:expr) => {{
+    ($mesh:expr, $ray:expr, $stats:expr, $avx2:expr) => {{
         let (mesh, ray): (&TriangleMesh, &Ray) = ($mesh, $ray);
         let prefetch = |first| mesh.prefetch_block(first);
         let mut lazy_wr = None;
         mesh.accel
             .occluded_leaves(ray, $stats, prefetch, |first, count| {
                 let wr = &*lazy_wr.get_or_insert_with(|| WatertightRay::new(ray));
-                mesh.leaf_blocks(wr, ray, first, count)
+                mesh.leaf_blocks::<{ $avx2 }>(wr, ray, first, count)
             })
     }};
 }
@@ -430,7 +438,7 @@ impl TriangleMesh {
                 // SAFETY: `avx2` is set only where the processor supports AVX2.
                 return unsafe { self.intersect_blocks_avx2(ray, stats, order) };
             }
-            return intersect_blocks!(self, ray, stats, order);
+            return intersect_blocks!(self, ray, stats, order, false);
         }
         let wr = WatertightRay::new(ray);
         let mut best = None;
@@ -461,14 +469,14 @@ impl TriangleMesh {
         stats: &mut RayStats,
         order: &[u32],
     ) -> Option<ShapeHit> {
-        intersect_blocks!(self, ray, stats, order)
+        intersect_blocks!(self, ray, stats, order, true)
     }
 
     /// [`TriangleMesh::occluded`] over the SIMD blocks, compiled for AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     unsafe fn occluded_blocks_avx2(&self, ray: &Ray, stats: &mut RayStats) -> bool {
-        occluded_blocks!(self, ray, stats)
+        occluded_blocks!(self, ray, stats, true)
     }
 
     /// The closest-hit test of a whole leaf (positions `first..first + count` of the
@@ -476,7 +484,7 @@ impl TriangleMesh {
     /// `closest` for a closer one.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn leaf_closest(
+    fn leaf_closest<const AVX2_CALLER: bool>(
         &self,
         wr: &WatertightRay,
         t_min: f32,
@@ -493,8 +501,15 @@ impl TriangleMesh {
         #[cfg(target_arch = "x86_64")]
         while self.avx2 && b + 1 < end {
             // SAFETY: `avx2` is set only where the processor supports AVX2.
+            let (x, y) = (&self.blocks[b], &self.blocks[b + 1]);
+            // SAFETY: `avx2` is set only where the processor supports AVX2; the body is
+            // inlined only into callers compiled for AVX2 (`AVX2_CALLER`).
             let hits = unsafe {
-                intersect_pair_avx2(&self.blocks[b], &self.blocks[b + 1], wr, t_min, *t_max)
+                if AVX2_CALLER {
+                    intersect_pair_inline(x, y, wr, t_min, *t_max)
+                } else {
+                    intersect_pair_avx2(x, y, wr, t_min, *t_max)
+                }
             };
             found |= take_nearest(b, &hits, order, t_max, closest);
             b += 2;
@@ -510,14 +525,27 @@ impl TriangleMesh {
     /// Whether a triangle of a whole leaf blocks `ray` (the any-hit test of the leaf at
     /// positions `first..first + count`).
     #[inline(always)]
-    fn leaf_blocks(&self, wr: &WatertightRay, ray: &Ray, first: u32, count: u32) -> bool {
+    fn leaf_blocks<const AVX2_CALLER: bool>(
+        &self,
+        wr: &WatertightRay,
+        ray: &Ray,
+        first: u32,
+        count: u32,
+    ) -> bool {
         let mut b = first as usize / BLOCK;
         let end = (first + count).div_ceil(BLOCK as u32) as usize;
         #[cfg(target_arch = "x86_64")]
         while self.avx2 && b + 1 < end {
             let (x, y) = (&self.blocks[b], &self.blocks[b + 1]);
-            // SAFETY: `avx2` is set only where the processor supports AVX2.
-            if unsafe { intersect_pair_avx2(x, y, wr, ray.t_min, ray.t_max) }.0 != 0 {
+            // SAFETY: as in `leaf_closest`.
+            let hits = unsafe {
+                if AVX2_CALLER {
+                    intersect_pair_inline(x, y, wr, ray.t_min, ray.t_max)
+                } else {
+                    intersect_pair_avx2(x, y, wr, ray.t_min, ray.t_max)
+                }
+            };
+            if hits.0 != 0 {
                 return true;
             }
             b += 2;
@@ -560,7 +588,7 @@ impl TriangleMesh {
             |_| -> State { (None, None) },
             |(wr, closest), ray, first, count, t_max| {
                 let wr = &*wr.get_or_insert_with(|| WatertightRay::new(ray));
-                self.leaf_closest(wr, ray.t_min, first, count, t_max, order, closest)
+                self.leaf_closest::<false>(wr, ray.t_min, first, count, t_max, order, closest)
             },
             |i, (_, closest), _| {
                 hits[i] = closest.map(|(t, at, uv)| ShapeHit {
@@ -590,7 +618,7 @@ impl TriangleMesh {
             |_| None,
             |wr: &mut Option<WatertightRay>, ray, first, count| {
                 let wr = &*wr.get_or_insert_with(|| WatertightRay::new(ray));
-                self.leaf_blocks(wr, ray, first, count)
+                self.leaf_blocks::<false>(wr, ray, first, count)
             },
             |i, _, any| occluded[i] = any,
         );
@@ -605,7 +633,7 @@ impl TriangleMesh {
                 // SAFETY: `avx2` is set only where the processor supports AVX2.
                 return unsafe { self.occluded_blocks_avx2(ray, stats) };
             }
-            return occluded_blocks!(self, ray, stats);
+            return occluded_blocks!(self, ray, stats, false);
         }
         let wr = WatertightRay::new(ray);
         self.accel.occluded(ray, stats, |prim| {

@@ -153,6 +153,26 @@ pub unsafe fn intersect_pair_avx2(
     t_min: f32,
     t_max: f32,
 ) -> PairHits {
+    // SAFETY: this function's caller guarantees AVX2.
+    unsafe { intersect_pair_inline(a, b, wr, t_min, t_max) }
+}
+
+/// [`intersect_pair_avx2`]'s body, to be inlined into callers that are themselves
+/// compiled for AVX2 (`#[target_feature]` functions cannot be forced inline): its
+/// intrinsics inline there, and its lanes stay in registers.
+///
+/// # Safety
+/// The processor must support AVX2, and the caller should be compiled for it (elsewhere
+/// each intrinsic becomes a call).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub unsafe fn intersect_pair_inline(
+    a: &TriangleBlock,
+    b: &TriangleBlock,
+    wr: &WatertightRay,
+    t_min: f32,
+    t_max: f32,
+) -> PairHits {
     use std::arch::x86_64::*;
     let (kx, ky, kz) = wr.axes();
     let [ox, oy, oz] = wr.origin_permuted().map(|c| _mm256_set1_ps(c));
