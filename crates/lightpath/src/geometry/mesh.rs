@@ -12,7 +12,7 @@
 //! ```
 
 #[cfg(target_arch = "x86_64")]
-use super::triangle_block::{intersect_pair_avx2, intersect_pair_inline};
+use super::triangle_block::intersect_pair;
 use super::triangle_block::{nearest_lane, TriangleBlock, BLOCK};
 use super::{MeshData, ShapeHit, SurfaceInteraction};
 use crate::accel::{Accel, AccelKind, RayStats};
@@ -500,17 +500,9 @@ impl TriangleMesh {
         // Two blocks at a time with 8-lane AVX2 where the processor has it.
         #[cfg(target_arch = "x86_64")]
         while self.avx2 && b + 1 < end {
-            // SAFETY: `avx2` is set only where the processor supports AVX2.
             let (x, y) = (&self.blocks[b], &self.blocks[b + 1]);
-            // SAFETY: `avx2` is set only where the processor supports AVX2; the body is
-            // inlined only into callers compiled for AVX2 (`AVX2_CALLER`).
-            let hits = unsafe {
-                if AVX2_CALLER {
-                    intersect_pair_inline(x, y, wr, t_min, *t_max)
-                } else {
-                    intersect_pair_avx2(x, y, wr, t_min, *t_max)
-                }
-            };
+            // SAFETY: `avx2` is set only where the processor supports AVX2.
+            let hits = unsafe { intersect_pair::<AVX2_CALLER>(x, y, wr, t_min, *t_max) };
             found |= take_nearest(b, &hits, order, t_max, closest);
             b += 2;
         }
@@ -537,14 +529,8 @@ impl TriangleMesh {
         #[cfg(target_arch = "x86_64")]
         while self.avx2 && b + 1 < end {
             let (x, y) = (&self.blocks[b], &self.blocks[b + 1]);
-            // SAFETY: as in `leaf_closest`.
-            let hits = unsafe {
-                if AVX2_CALLER {
-                    intersect_pair_inline(x, y, wr, ray.t_min, ray.t_max)
-                } else {
-                    intersect_pair_avx2(x, y, wr, ray.t_min, ray.t_max)
-                }
-            };
+            // SAFETY: `avx2` is set only where the processor supports AVX2.
+            let hits = unsafe { intersect_pair::<AVX2_CALLER>(x, y, wr, ray.t_min, ray.t_max) };
             if hits.0 != 0 {
                 return true;
             }

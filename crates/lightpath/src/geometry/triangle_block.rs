@@ -157,6 +157,30 @@ pub unsafe fn intersect_pair_avx2(
     unsafe { intersect_pair_inline(a, b, wr, t_min, t_max) }
 }
 
+/// The pair test from a caller that is compiled for AVX2 (`AVX2_CALLER`: inlined, see
+/// [`intersect_pair_inline`]) or not (a call to [`intersect_pair_avx2`]).
+///
+/// # Safety
+/// The processor must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub unsafe fn intersect_pair<const AVX2_CALLER: bool>(
+    a: &TriangleBlock,
+    b: &TriangleBlock,
+    wr: &WatertightRay,
+    t_min: f32,
+    t_max: f32,
+) -> PairHits {
+    // SAFETY: the caller guarantees AVX2.
+    unsafe {
+        if AVX2_CALLER {
+            intersect_pair_inline(a, b, wr, t_min, t_max)
+        } else {
+            intersect_pair_avx2(a, b, wr, t_min, t_max)
+        }
+    }
+}
+
 /// [`intersect_pair_avx2`]'s body, to be inlined into callers that are themselves
 /// compiled for AVX2 (`#[target_feature]` functions cannot be forced inline): its
 /// intrinsics inline there, and its lanes stay in registers.
