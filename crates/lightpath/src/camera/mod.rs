@@ -100,7 +100,7 @@ impl Camera {
 
     /// The ray for a film sample, in render space with a unit direction; `None` where the
     /// camera sees nothing (outside a fisheye's image circle).
-    #[inline]
+    #[inline(always)]
     pub fn generate_ray(&self, sample: &CameraSample) -> Option<Ray> {
         match self {
             Camera::Perspective(c) => Some(c.generate_ray(sample)),

@@ -611,7 +611,7 @@ impl TriangleMesh {
     }
 
     /// Any hit through the mesh's BVH.
-    #[inline]
+    #[inline(always)]
     pub fn occluded(&self, ray: &Ray, stats: &mut RayStats) -> bool {
         if !self.blocks.is_empty() {
             #[cfg(target_arch = "x86_64")]
