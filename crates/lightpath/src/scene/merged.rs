@@ -156,12 +156,12 @@ impl MergedMesh {
         (vec![merged], merged_flags)
     }
 
-    #[inline]
+    #[inline(always)]
     pub fn intersect(&self, ray: &Ray, stats: &mut RayStats) -> Option<ShapeHit> {
         self.mesh.intersect(ray, stats)
     }
 
-    #[inline]
+    #[inline(always)]
     pub fn occluded(&self, ray: &Ray, stats: &mut RayStats) -> bool {
         self.mesh.occluded(ray, stats)
     }
