@@ -685,18 +685,7 @@ impl<X> Flight<X> {
 
     /// Takes the next ray into this slot and returns the previous ray's state.
     fn restart(&mut self, ray: &Ray, index: usize, root: (u32, u32), user: X) -> X {
-        self.lanes = RayLanes::new(ray);
-        self.t_max = ray.t_max;
-        self.axis_parallel = has_zero_component(ray.direction);
-        self.any = false;
-        self.ray = index;
-        self.cur = Entry {
-            child: root.0,
-            count: root.1,
-            dist: ray.t_min,
-        };
-        self.sp = 0;
-        std::mem::replace(&mut self.user, user)
+        std::mem::replace(self, Flight::new(ray, index, root, user)).user
     }
 }
 
