@@ -29,6 +29,11 @@ pub struct SobolSampler {
     next: usize,
     xs: [f32; BATCH],
     ys: [f32; BATCH],
+    /// The seeds of the current pixel's first batches, in order (see [`BatchSeeds`]).
+    kept: Vec<BatchSeeds>,
+    /// The pixel hash `kept` belongs to.
+    kept_pixel_hash: u64,
+    lanes: Lanes,
 }
 
 /// 1 - ε in f32: the largest value below 1.
@@ -197,74 +202,280 @@ struct BatchStart {
     n: u32,
 }
 
+/// The seeds of a batch's dimensions, lane by lane: of the index permutation and of the x
+/// and y scrambles. They depend on the pixel and the dimension but not on the sample
+/// index, so the sampler keeps them for the samples of a pixel after the first.
+#[derive(Debug, Clone, Copy, Default)]
+struct BatchSeeds {
+    permutation: [u32; BATCH],
+    x: [u32; BATCH],
+    y: [u32; BATCH],
+}
+
+/// Batches of seeds a sampler keeps per pixel (at most this many dimensions are drawn
+/// from kept seeds; deeper ones are hashed again at every sample).
+const KEPT_BATCHES: usize = 64;
+
 /// The points of dimensions `dim0 .. dim0 + BATCH` of sample `index` (out of `n`) for the
 /// pixel hashed to `pixel_hash`, as x and y coordinates: the same values as the scalar
 /// definition ([`SobolSampler::point`]), written as straight-line loops over the lanes so
-/// that the compiler computes the lanes together in vector registers.
+/// that the compiler computes the lanes together in vector registers. `seeds` are the
+/// batch's ([`batch_seeds`]).
 #[inline(always)]
-fn fill_lanes(at: BatchStart, xs: &mut [f32; BATCH], ys: &mut [f32; BATCH]) {
-    let BatchStart {
-        pixel_hash,
-        dim0,
-        index,
-        n,
-    } = at;
-    let mut h = [0u64; BATCH];
-    for (k, h) in h.iter_mut().enumerate() {
-        *h = dimension_hash(pixel_hash, dim0 + k as u32);
-    }
+fn fill_lanes(at: BatchStart, seeds: &BatchSeeds, xs: &mut [f32; BATCH], ys: &mut [f32; BATCH]) {
+    let BatchStart { index, n, .. } = at;
+    let p = &seeds.permutation;
     let mut idx = [index; BATCH];
     if index < n {
         let w = bit_mask(n);
         for k in 0..BATCH {
-            idx[k] = permutation_round(index, w, h[k] as u32);
+            idx[k] = permutation_round(index, w, p[k]);
         }
-        // Cycle walking: only counts that are not powers of two ever take a second round.
-        if idx.iter().fold(false, |any, &i| any | (i >= n)) {
+        // The lanes stay in vector registers on the usual path (a count that is a power of
+        // two); the per-lane loops of the other counts are out of line, so that they do
+        // not make the compiler keep `idx` in memory.
+        if n.is_power_of_two() {
             for k in 0..BATCH {
-                while idx[k] >= n {
-                    idx[k] = permutation_round(idx[k], w, h[k] as u32);
-                }
+                idx[k] = idx[k].wrapping_add(p[k]) & (n - 1);
             }
-        }
-        for k in 0..BATCH {
-            idx[k] = finish_permutation(idx[k], n, h[k] as u32);
+        } else {
+            finish_lanes_not_power_of_two(&mut idx, n, w, p);
         }
     }
     for k in 0..BATCH {
         let i = idx[k];
-        xs[k] = to_unit(owen_scramble_reversed(i, (h[k] >> 32) as u32));
+        xs[k] = to_unit(owen_scramble_reversed(i, seeds.x[k]));
         ys[k] = to_unit(owen_scramble_reversed(
             sobol_dim1_reversed_alu(i),
-            mix_bits(h[k]) as u32,
+            seeds.y[k],
         ));
     }
 }
 
-/// [`fill_lanes`] compiled for a set of processor features (used only where the processor
-/// has them).
-macro_rules! fill_lanes_for {
-    ($(#[$doc:meta])* $name:ident, $features:literal) => {
+/// The end of [`fill_lanes`]'s permutation for counts that are not powers of two: cycle
+/// walking (rounds until the index is below `n`), then [`finish_permutation`].
+#[inline(never)]
+fn finish_lanes_not_power_of_two(idx: &mut [u32; BATCH], n: u32, w: u32, p: &[u32; BATCH]) {
+    for k in 0..BATCH {
+        while idx[k] >= n {
+            idx[k] = permutation_round(idx[k], w, p[k]);
+        }
+        idx[k] = finish_permutation(idx[k], n, p[k]);
+    }
+}
+
+/// The seeds of the batch of dimensions `dim0 .. dim0 + BATCH` of the pixel hashed to
+/// `pixel_hash`, written as a straight-line loop over the lanes for the vector units.
+#[inline(always)]
+fn batch_seeds(pixel_hash: u64, dim0: u32, seeds: &mut BatchSeeds) {
+    for k in 0..BATCH {
+        let h = dimension_hash(pixel_hash, dim0 + k as u32);
+        seeds.permutation[k] = h as u32;
+        seeds.x[k] = (h >> 32) as u32;
+        seeds.y[k] = mix_bits(h) as u32;
+    }
+}
+
+/// [`batch_seeds`] and [`fill_lanes`] compiled for a set of processor features (used only
+/// where the processor has them).
+macro_rules! lanes_for {
+    ($(#[$doc:meta])* $seeds:ident, $fill:ident, $features:literal) => {
         $(#[$doc])*
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = $features)]
-        unsafe fn $name(at: BatchStart, xs: &mut [f32; BATCH], ys: &mut [f32; BATCH]) {
-            fill_lanes(at, xs, ys)
+        unsafe fn $seeds(pixel_hash: u64, dim0: u32, seeds: &mut BatchSeeds) {
+            batch_seeds(pixel_hash, dim0, seeds)
+        }
+        $(#[$doc])*
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $features)]
+        unsafe fn $fill(
+            at: BatchStart,
+            seeds: &BatchSeeds,
+            xs: &mut [f32; BATCH],
+            ys: &mut [f32; BATCH],
+        ) {
+            fill_lanes(at, seeds, xs, ys)
         }
     };
 }
 
-fill_lanes_for!(
+lanes_for!(
     /// Eight 32-bit lanes per instruction.
+    batch_seeds_avx2,
     fill_lanes_avx2,
     "avx2"
 );
-fill_lanes_for!(
+lanes_for!(
     /// With native 64-bit lane multiplies (AVX-512DQ), as the two 64-bit hashes per lane
     /// want.
+    batch_seeds_avx512,
     fill_lanes_avx512,
     "avx2,avx512f,avx512dq,avx512vl"
 );
+
+/// The vector units [`SobolSampler::refill`] may use, found once per sampler.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Lanes {
+    Avx512,
+    Avx2,
+    Portable,
+}
+
+impl Lanes {
+    fn detect() -> Lanes {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx512dq")
+                && std::arch::is_x86_feature_detected!("avx512vl")
+            {
+                return Lanes::Avx512;
+            }
+            if std::arch::is_x86_feature_detected!("avx2") {
+                return Lanes::Avx2;
+            }
+        }
+        Lanes::Portable
+    }
+}
+
+/// [`fill_lanes`] for the usual case, a sample index below a count that is a power of two,
+/// in explicit AVX2 intrinsics: the lanes stay in vector registers throughout (the
+/// compiler's vectorisation of the loops spills them between steps). Same values, bit for
+/// bit: every step is the same 32-bit integer operation per lane, and the final
+/// conversion to `f32` rounds once, as `as f32` does.
+///
+/// # Safety
+/// The processor must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn fill_lanes_power_of_two_avx2(
+    index: u32,
+    n: u32,
+    seeds: &BatchSeeds,
+    xs: &mut [f32; BATCH],
+    ys: &mut [f32; BATCH],
+) {
+    use std::arch::x86_64::*;
+    debug_assert!(n.is_power_of_two() && index < n);
+    let splat = |x: u32| _mm256_set1_epi32(x as i32);
+    let load = |a: &[u32; BATCH]| {
+        // SAFETY: `a` holds eight u32 (unaligned load).
+        unsafe { _mm256_loadu_si256(a.as_ptr() as *const __m256i) }
+    };
+    let (xor, and, or) = (_mm256_xor_si256, _mm256_and_si256, _mm256_or_si256);
+    let mul = _mm256_mullo_epi32;
+    let p = load(&seeds.permutation);
+    let w = splat(bit_mask(n));
+    // permutation_round(index, w, p), lane by lane.
+    let mut i = xor(splat(index), p);
+    i = mul(i, splat(0xe170_893d));
+    i = xor(i, _mm256_srli_epi32::<16>(p));
+    i = xor(i, _mm256_srli_epi32::<4>(and(i, w)));
+    i = xor(i, _mm256_srli_epi32::<8>(p));
+    i = mul(i, splat(0x0929_eb3f));
+    i = xor(i, _mm256_srli_epi32::<23>(p));
+    i = xor(i, _mm256_srli_epi32::<1>(and(i, w)));
+    i = mul(i, or(splat(1), _mm256_srli_epi32::<27>(p)));
+    i = mul(i, splat(0x6935_fa69));
+    i = xor(i, _mm256_srli_epi32::<11>(and(i, w)));
+    i = mul(i, splat(0x74dc_b303));
+    i = xor(i, _mm256_srli_epi32::<2>(and(i, w)));
+    i = mul(i, splat(0x9e50_1cc3));
+    i = xor(i, _mm256_srli_epi32::<2>(and(i, w)));
+    i = mul(i, splat(0xc860_a3df));
+    i = and(i, w);
+    i = xor(i, _mm256_srli_epi32::<5>(i));
+    // finish_permutation for a power of two: (i + p) mod n. With n a power of two, `w`
+    // is n - 1 and every round's result is below n, so no cycle walking.
+    let i = and(_mm256_add_epi32(i, p), splat(n - 1));
+    // sobol_dim1_reversed_alu(i).
+    let mut d = i;
+    d = xor(d, and(_mm256_srli_epi32::<1>(d), splat(0x5555_5555)));
+    d = xor(d, and(_mm256_srli_epi32::<2>(d), splat(0x3333_3333)));
+    d = xor(d, and(_mm256_srli_epi32::<4>(d), splat(0x0f0f_0f0f)));
+    d = xor(d, and(_mm256_srli_epi32::<8>(d), splat(0x00ff_00ff)));
+    d = xor(d, and(_mm256_srli_epi32::<16>(d), splat(0x0000_ffff)));
+    // owen_scramble_reversed(x, seed): the hash, then the bits reversed.
+    let owen = |x: __m256i, seed: __m256i| -> __m256i {
+        let mut x = _mm256_add_epi32(x, seed);
+        x = xor(x, mul(x, splat(0x6c50_b47c)));
+        x = xor(x, mul(x, splat(0xb82f_1e52)));
+        x = xor(x, mul(x, splat(0xc7af_e638)));
+        x = xor(x, mul(x, splat(0x8d22_f6e6)));
+        // Reverse the bytes of each lane, then the bits of each byte (a nibble table).
+        let bytes = _mm256_setr_epi8(
+            3, 2, 1, 0, 7, 6, 5, 4, 11, 10, 9, 8, 15, 14, 13, 12, 3, 2, 1, 0, 7, 6, 5, 4, 11, 10,
+            9, 8, 15, 14, 13, 12,
+        );
+        x = _mm256_shuffle_epi8(x, bytes);
+        let low_nibbles = _mm256_set1_epi8(0x0f);
+        // Nibble k reversed, in the high (`hi`) or low (`lo`) half of a byte.
+        let hi = _mm256_setr_epi8(
+            0x00,
+            0x80u8 as i8,
+            0x40,
+            0xc0u8 as i8,
+            0x20,
+            0xa0u8 as i8,
+            0x60,
+            0xe0u8 as i8,
+            0x10,
+            0x90u8 as i8,
+            0x50,
+            0xd0u8 as i8,
+            0x30,
+            0xb0u8 as i8,
+            0x70,
+            0xf0u8 as i8,
+            0x00,
+            0x80u8 as i8,
+            0x40,
+            0xc0u8 as i8,
+            0x20,
+            0xa0u8 as i8,
+            0x60,
+            0xe0u8 as i8,
+            0x10,
+            0x90u8 as i8,
+            0x50,
+            0xd0u8 as i8,
+            0x30,
+            0xb0u8 as i8,
+            0x70,
+            0xf0u8 as i8,
+        );
+        let lo = _mm256_setr_epi8(
+            0x0, 0x8, 0x4, 0xc, 0x2, 0xa, 0x6, 0xe, 0x1, 0x9, 0x5, 0xd, 0x3, 0xb, 0x7, 0xf, 0x0,
+            0x8, 0x4, 0xc, 0x2, 0xa, 0x6, 0xe, 0x1, 0x9, 0x5, 0xd, 0x3, 0xb, 0x7, 0xf,
+        );
+        let low = _mm256_shuffle_epi8(hi, and(x, low_nibbles));
+        let high = _mm256_shuffle_epi8(lo, and(_mm256_srli_epi16::<4>(x), low_nibbles));
+        or(low, high)
+    };
+    // to_unit: u32 to f32 rounded once (high and low 16 bits as exact floats, then one
+    // rounding add), scaled by 2^-32 (exact) and kept below 1.
+    let to_unit = |x: __m256i| -> __m256 {
+        let low = _mm256_blend_epi16::<0xaa>(x, splat(0x4b00_0000));
+        let high = _mm256_blend_epi16::<0xaa>(_mm256_srli_epi32::<16>(x), splat(0x5300_0000));
+        let high = _mm256_sub_ps(
+            _mm256_castsi256_ps(high),
+            _mm256_set1_ps(f32::from_bits(0x5300_0080)),
+        );
+        let f = _mm256_add_ps(high, _mm256_castsi256_ps(low));
+        _mm256_min_ps(
+            _mm256_mul_ps(f, _mm256_set1_ps(1.0 / 4_294_967_296.0)),
+            _mm256_set1_ps(ONE_MINUS_EPSILON),
+        )
+    };
+    let x = to_unit(owen(i, load(&seeds.x)));
+    let y = to_unit(owen(d, load(&seeds.y)));
+    // SAFETY: `xs` and `ys` hold eight f32 each (unaligned stores).
+    unsafe {
+        _mm256_storeu_ps(xs.as_mut_ptr(), x);
+        _mm256_storeu_ps(ys.as_mut_ptr(), y);
+    }
+}
 
 /// The hash of one dimension of a pixel: seeds of its permutation (low 32 bits) and of the
 /// x scramble (high 32 bits); `mix_bits` of it seeds the y scramble.
@@ -308,6 +519,9 @@ impl SobolSampler {
             next: BATCH,
             xs: [0.0; BATCH],
             ys: [0.0; BATCH],
+            kept: Vec::new(),
+            kept_pixel_hash: 0,
+            lanes: Lanes::detect(),
         }
     }
 
@@ -318,6 +532,12 @@ impl SobolSampler {
         self.index = index;
         self.dimension = 0;
         self.next = BATCH;
+        if self.pixel_hash != self.kept_pixel_hash {
+            // Pixel hashes are distinct for distinct pixels (an injective map of (x, y)
+            // through the bijection `mix_bits`), so kept seeds are never a wrong pixel's.
+            self.kept.clear();
+            self.kept_pixel_hash = self.pixel_hash;
+        }
     }
 
     /// The 2D point of `dimension` for the current pixel and sample index, by definition
@@ -360,29 +580,52 @@ impl SobolSampler {
             index: self.index,
             n: self.samples_per_pixel,
         };
-        let (xs, ys) = (&mut self.xs, &mut self.ys);
-        #[cfg(target_arch = "x86_64")]
-        let vector = if std::arch::is_x86_feature_detected!("avx512dq")
-            && std::arch::is_x86_feature_detected!("avx512vl")
-        {
-            // SAFETY: the processor supports AVX-512 F, DQ and VL (checked just above;
-            // DQ and VL imply F, and every AVX-512 processor has AVX2).
-            unsafe { fill_lanes_avx512(at, xs, ys) };
-            true
-        } else if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the processor supports AVX2 (checked just above).
-            unsafe { fill_lanes_avx2(at, xs, ys) };
-            true
-        } else {
-            false
-        };
-        #[cfg(not(target_arch = "x86_64"))]
-        let vector = false;
-        if !vector {
-            fill_lanes(at, xs, ys);
-        }
         self.dimension += BATCH as u32;
         self.next = 0;
+        // Dimensions are drawn in order from 0 at every sample, so batch `b` is either
+        // kept already or the next one to keep.
+        let batch = (at.dim0 / BATCH as u32) as usize;
+        let mut scratch = BatchSeeds::default();
+        let (seeds, known) = if batch < self.kept.len() {
+            (&mut self.kept[batch], true)
+        } else if batch == self.kept.len() && batch < KEPT_BATCHES {
+            self.kept.push(BatchSeeds::default());
+            (&mut self.kept[batch], false)
+        } else {
+            (&mut scratch, false)
+        };
+        let (xs, ys) = (&mut self.xs, &mut self.ys);
+        match self.lanes {
+            #[cfg(target_arch = "x86_64")]
+            Lanes::Avx512 | Lanes::Avx2 => {
+                if !known {
+                    if self.lanes == Lanes::Avx512 {
+                        // SAFETY: the processor supports AVX-512 F, DQ and VL (detected in
+                        // `Lanes::detect`; DQ and VL imply F).
+                        unsafe { batch_seeds_avx512(at.pixel_hash, at.dim0, seeds) };
+                    } else {
+                        // SAFETY: the processor supports AVX2 (detected in `Lanes::detect`).
+                        unsafe { batch_seeds_avx2(at.pixel_hash, at.dim0, seeds) };
+                    }
+                }
+                if at.index < at.n && at.n.is_power_of_two() {
+                    // SAFETY: every AVX-512 processor has AVX2 (and so does `Lanes::Avx2`).
+                    unsafe { fill_lanes_power_of_two_avx2(at.index, at.n, seeds, xs, ys) };
+                } else if self.lanes == Lanes::Avx512 {
+                    // SAFETY: as for `batch_seeds_avx512` above.
+                    unsafe { fill_lanes_avx512(at, seeds, xs, ys) };
+                } else {
+                    // SAFETY: as for `batch_seeds_avx2` above.
+                    unsafe { fill_lanes_avx2(at, seeds, xs, ys) };
+                }
+            }
+            _ => {
+                if !known {
+                    batch_seeds(at.pixel_hash, at.dim0, seeds);
+                }
+                fill_lanes(at, seeds, xs, ys);
+            }
+        }
     }
 
     /// One dimension: the x coordinate of that dimension's 2D point.
@@ -476,40 +719,113 @@ mod tests {
             }
         }
         // Every variant the processor can run, whichever the sampler picks.
-        type Fill = fn(BatchStart, &mut [f32; BATCH], &mut [f32; BATCH]);
-        let mut variants: Vec<(&str, Fill)> = vec![("portable", fill_lanes)];
+        let mut variants = vec![Lanes::Portable];
         #[cfg(target_arch = "x86_64")]
         {
             if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: AVX2 is available (checked just above).
-                variants.push(("avx2", |at, xs, ys| unsafe { fill_lanes_avx2(at, xs, ys) }));
+                variants.push(Lanes::Avx2);
             }
             if std::arch::is_x86_feature_detected!("avx512dq")
                 && std::arch::is_x86_feature_detected!("avx512vl")
             {
-                // SAFETY: AVX-512 F, DQ and VL are available (checked just above).
-                variants.push(("avx512", |at, xs, ys| unsafe {
-                    fill_lanes_avx512(at, xs, ys)
-                }));
+                variants.push(Lanes::Avx512);
             }
         }
-        for (name, fill) in variants {
-            for (spp, index) in [(100u32, 77u32), (64, 5), (64, 200), (1, 0)] {
-                let (mut xs, mut ys) = ([0.0; BATCH], [0.0; BATCH]);
+        for lanes in variants {
+            for spp in [1u32, 2, 3, 31, 64, 100, 1 << 20] {
                 let mut s = SobolSampler::new(spp, 5);
-                s.start_pixel_sample(UVec2::new(3, 4), index);
-                let at = BatchStart {
-                    pixel_hash: s.pixel_hash,
-                    dim0: 8,
-                    index,
-                    n: spp,
-                };
-                fill(at, &mut xs, &mut ys);
-                for k in 0..BATCH {
-                    let want = s.point(8 + k as u32);
-                    assert_eq!((xs[k], ys[k]), (want.x, want.y), "{name} {spp} {index}");
+                s.lanes = lanes;
+                for _ in 0..50 {
+                    let pixel = UVec2::new(rng.next_u32() % 64, rng.next_u32() % 64);
+                    let index = match rng.next_u32() % 4 {
+                        0 => spp - 1,
+                        1 => spp + rng.next_u32() % 8,
+                        _ => rng.next_u32() % spp,
+                    };
+                    for _ in 0..2 {
+                        // The second time from kept seeds.
+                        s.start_pixel_sample(pixel, index);
+                        let reference = s.clone();
+                        for dim in 0..24 {
+                            let want = reference.point(dim);
+                            let got = s.next_2d();
+                            assert_eq!(
+                                (got.x.to_bits(), got.y.to_bits()),
+                                (want.x.to_bits(), want.y.to_bits()),
+                                "{lanes:?} {spp} {index} {dim}"
+                            );
+                        }
+                    }
                 }
             }
+        }
+    }
+
+    /// The explicit-intrinsics path equals the portable lanes on arbitrary seeds, for every
+    /// power-of-two count and indices spread over it.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn power_of_two_lanes_equal_the_portable_ones() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let mut rng = crate::sampling::Pcg32::new(21, 6);
+        for log_n in 0..32 {
+            let n = 1u32 << log_n;
+            for _ in 0..200 {
+                let mut seeds = BatchSeeds::default();
+                for k in 0..BATCH {
+                    seeds.permutation[k] = rng.next_u32();
+                    seeds.x[k] = rng.next_u32();
+                    seeds.y[k] = rng.next_u32();
+                }
+                let index = rng.next_u32() & (n - 1);
+                let at = BatchStart {
+                    pixel_hash: 0,
+                    dim0: 0,
+                    index,
+                    n,
+                };
+                let (mut xs, mut ys) = ([0.0; BATCH], [0.0; BATCH]);
+                fill_lanes(at, &seeds, &mut xs, &mut ys);
+                let (mut vx, mut vy) = ([0.0; BATCH], [0.0; BATCH]);
+                // SAFETY: AVX2 is available (checked above).
+                unsafe { fill_lanes_power_of_two_avx2(index, n, &seeds, &mut vx, &mut vy) };
+                assert_eq!(
+                    (xs.map(f32::to_bits), ys.map(f32::to_bits)),
+                    (vx.map(f32::to_bits), vy.map(f32::to_bits)),
+                    "n {n} index {index}"
+                );
+            }
+        }
+    }
+
+    /// Seeds kept across the samples of a pixel give the definition's values: samples
+    /// drawing different numbers of dimensions (so the kept batches grow between samples),
+    /// past the kept limit, and pixels revisited after others.
+    #[test]
+    fn kept_seeds_equal_the_definition() {
+        let mut rng = crate::sampling::Pcg32::new(11, 2);
+        let mut s = SobolSampler::new(16, 9);
+        let limit = (KEPT_BATCHES * BATCH) as u32 + 20;
+        for pixel in [(1, 2), (5, 0), (1, 2), (1, 3)] {
+            let pixel = UVec2::new(pixel.0, pixel.1);
+            for index in 0..20 {
+                s.start_pixel_sample(pixel, index);
+                let reference = s.clone();
+                let dims = match index {
+                    0 => 3,
+                    1 => limit,
+                    _ => rng.next_u32() % limit,
+                };
+                for dim in 0..dims {
+                    let want = reference.point(dim);
+                    let got = s.next_2d();
+                    assert_eq!(got.x.to_bits(), want.x.to_bits(), "{pixel} {index} {dim}");
+                    assert_eq!(got.y.to_bits(), want.y.to_bits(), "{pixel} {index} {dim}");
+                }
+            }
+            assert_eq!(s.kept.len(), KEPT_BATCHES);
         }
     }
 
