@@ -31,8 +31,9 @@ pub struct SobolSampler {
     ys: [f32; BATCH],
     /// The seeds of the current pixel's first batches, in order (see [`BatchSeeds`]).
     kept: Vec<BatchSeeds>,
-    /// The pixel hash `kept` belongs to.
+    /// The pixel hash and sample count `kept` belong to.
     kept_pixel_hash: u64,
+    kept_count: u32,
     lanes: Lanes,
 }
 
@@ -208,6 +209,8 @@ struct BatchStart {
 #[derive(Debug, Clone, Copy, Default)]
 struct BatchSeeds {
     permutation: [u32; BATCH],
+    /// `permutation` modulo the sample count.
+    permutation_mod: [u32; BATCH],
     x: [u32; BATCH],
     y: [u32; BATCH],
 }
@@ -265,14 +268,23 @@ fn finish_lanes_not_power_of_two(idx: &mut [u32; BATCH], n: u32, w: u32, p: &[u3
 }
 
 /// The seeds of the batch of dimensions `dim0 .. dim0 + BATCH` of the pixel hashed to
-/// `pixel_hash`, written as a straight-line loop over the lanes for the vector units.
+/// `pixel_hash`, for `n` samples, written as a straight-line loop over the lanes for the
+/// vector units.
 #[inline(always)]
-fn batch_seeds(pixel_hash: u64, dim0: u32, seeds: &mut BatchSeeds) {
+fn batch_seeds(pixel_hash: u64, dim0: u32, n: u32, seeds: &mut BatchSeeds) {
     for k in 0..BATCH {
         let h = dimension_hash(pixel_hash, dim0 + k as u32);
         seeds.permutation[k] = h as u32;
         seeds.x[k] = (h >> 32) as u32;
         seeds.y[k] = mix_bits(h) as u32;
+    }
+    for k in 0..BATCH {
+        let p = seeds.permutation[k];
+        seeds.permutation_mod[k] = if n.is_power_of_two() {
+            p & (n - 1)
+        } else {
+            p % n
+        };
     }
 }
 
@@ -283,8 +295,8 @@ macro_rules! lanes_for {
         $(#[$doc])*
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = $features)]
-        unsafe fn $seeds(pixel_hash: u64, dim0: u32, seeds: &mut BatchSeeds) {
-            batch_seeds(pixel_hash, dim0, seeds)
+        unsafe fn $seeds(pixel_hash: u64, dim0: u32, n: u32, seeds: &mut BatchSeeds) {
+            batch_seeds(pixel_hash, dim0, n, seeds)
         }
         $(#[$doc])*
         #[cfg(target_arch = "x86_64")]
@@ -339,17 +351,22 @@ impl Lanes {
     }
 }
 
-/// [`fill_lanes`] for the usual case, a sample index below a count that is a power of two,
-/// in explicit AVX2 intrinsics: the lanes stay in vector registers throughout (the
-/// compiler's vectorisation of the loops spills them between steps). Same values, bit for
-/// bit: every step is the same 32-bit integer operation per lane, and the final
-/// conversion to `f32` rounds once, as `as f32` does.
+/// Counts up to this take [`fill_lanes_explicit_avx2`] (twice the count fits a signed
+/// 32-bit lane).
+const EXPLICIT_MAX_COUNT: u32 = 1 << 30;
+
+/// [`fill_lanes`] for a sample index below the count (up to [`EXPLICIT_MAX_COUNT`]) in
+/// explicit AVX2 intrinsics: the lanes stay in vector registers throughout (the
+/// compiler's vectorisation of the loops spills them between steps, and cannot vectorise
+/// the cycle walk or the remainder). Same values, bit for bit: every step is the same
+/// 32-bit integer operation per lane, the remainder is exact integer arithmetic, and the
+/// final conversion to `f32` rounds once, as `as f32` does.
 ///
 /// # Safety
 /// The processor must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn fill_lanes_power_of_two_avx2(
+unsafe fn fill_lanes_explicit_avx2(
     index: u32,
     n: u32,
     seeds: &BatchSeeds,
@@ -357,7 +374,7 @@ unsafe fn fill_lanes_power_of_two_avx2(
     ys: &mut [f32; BATCH],
 ) {
     use std::arch::x86_64::*;
-    debug_assert!(n.is_power_of_two() && index < n);
+    debug_assert!(index < n && n <= EXPLICIT_MAX_COUNT);
     let splat = |x: u32| _mm256_set1_epi32(x as i32);
     let load = |a: &[u32; BATCH]| {
         // SAFETY: `a` holds eight u32 (unaligned load).
@@ -367,28 +384,57 @@ unsafe fn fill_lanes_power_of_two_avx2(
     let mul = _mm256_mullo_epi32;
     let p = load(&seeds.permutation);
     let w = splat(bit_mask(n));
-    // permutation_round(index, w, p), lane by lane.
-    let mut i = xor(splat(index), p);
-    i = mul(i, splat(0xe170_893d));
-    i = xor(i, _mm256_srli_epi32::<16>(p));
-    i = xor(i, _mm256_srli_epi32::<4>(and(i, w)));
-    i = xor(i, _mm256_srli_epi32::<8>(p));
-    i = mul(i, splat(0x0929_eb3f));
-    i = xor(i, _mm256_srli_epi32::<23>(p));
-    i = xor(i, _mm256_srli_epi32::<1>(and(i, w)));
-    i = mul(i, or(splat(1), _mm256_srli_epi32::<27>(p)));
-    i = mul(i, splat(0x6935_fa69));
-    i = xor(i, _mm256_srli_epi32::<11>(and(i, w)));
-    i = mul(i, splat(0x74dc_b303));
-    i = xor(i, _mm256_srli_epi32::<2>(and(i, w)));
-    i = mul(i, splat(0x9e50_1cc3));
-    i = xor(i, _mm256_srli_epi32::<2>(and(i, w)));
-    i = mul(i, splat(0xc860_a3df));
-    i = and(i, w);
-    i = xor(i, _mm256_srli_epi32::<5>(i));
-    // finish_permutation for a power of two: (i + p) mod n. With n a power of two, `w`
-    // is n - 1 and every round's result is below n, so no cycle walking.
-    let i = and(_mm256_add_epi32(i, p), splat(n - 1));
+    // permutation_round(i, w, p), lane by lane.
+    let round = |mut i: __m256i| -> __m256i {
+        i = xor(i, p);
+        i = mul(i, splat(0xe170_893d));
+        i = xor(i, _mm256_srli_epi32::<16>(p));
+        i = xor(i, _mm256_srli_epi32::<4>(and(i, w)));
+        i = xor(i, _mm256_srli_epi32::<8>(p));
+        i = mul(i, splat(0x0929_eb3f));
+        i = xor(i, _mm256_srli_epi32::<23>(p));
+        i = xor(i, _mm256_srli_epi32::<1>(and(i, w)));
+        i = mul(i, or(splat(1), _mm256_srli_epi32::<27>(p)));
+        i = mul(i, splat(0x6935_fa69));
+        i = xor(i, _mm256_srli_epi32::<11>(and(i, w)));
+        i = mul(i, splat(0x74dc_b303));
+        i = xor(i, _mm256_srli_epi32::<2>(and(i, w)));
+        i = mul(i, splat(0x9e50_1cc3));
+        i = xor(i, _mm256_srli_epi32::<2>(and(i, w)));
+        i = mul(i, splat(0xc860_a3df));
+        i = and(i, w);
+        xor(i, _mm256_srli_epi32::<5>(i))
+    };
+    let mut i = round(splat(index));
+    let i = if n.is_power_of_two() {
+        // finish_permutation: (i + p) mod n. With n a power of two, `w` is n - 1 and
+        // every round's result is below n, so there is no cycle walking.
+        and(_mm256_add_epi32(i, p), splat(n - 1))
+    } else {
+        // Cycle walking: another round for the lanes at or above n (all values are at
+        // most `w` < 2n <= 2^31, so signed comparisons order them).
+        let last = splat(n - 1);
+        loop {
+            let above = _mm256_cmpgt_epi32(i, last);
+            if _mm256_testz_si256(above, above) != 0 {
+                break;
+            }
+            i = _mm256_blendv_epi8(i, round(i), above);
+        }
+        // finish_permutation: ((i + p) mod 2^32) mod n, which is congruent to
+        // i + (p mod n) - (2^32 mod n if i + p wrapped) and lies in (-n, 2n).
+        let j = _mm256_add_epi32(i, p);
+        let wrapped = xor(
+            _mm256_cmpeq_epi32(_mm256_max_epu32(j, p), j),
+            _mm256_set1_epi32(-1),
+        );
+        let wrap = ((1u64 << 32) % n as u64) as u32;
+        let mut v = _mm256_add_epi32(i, load(&seeds.permutation_mod));
+        v = _mm256_sub_epi32(v, and(wrapped, splat(wrap)));
+        let zero = _mm256_setzero_si256();
+        v = _mm256_add_epi32(v, and(_mm256_cmpgt_epi32(zero, v), splat(n)));
+        _mm256_sub_epi32(v, and(_mm256_cmpgt_epi32(v, last), splat(n)))
+    };
     // sobol_dim1_reversed_alu(i).
     let mut d = i;
     d = xor(d, and(_mm256_srli_epi32::<1>(d), splat(0x5555_5555)));
@@ -521,6 +567,7 @@ impl SobolSampler {
             ys: [0.0; BATCH],
             kept: Vec::new(),
             kept_pixel_hash: 0,
+            kept_count: 0,
             lanes: Lanes::detect(),
         }
     }
@@ -532,11 +579,12 @@ impl SobolSampler {
         self.index = index;
         self.dimension = 0;
         self.next = BATCH;
-        if self.pixel_hash != self.kept_pixel_hash {
+        if self.pixel_hash != self.kept_pixel_hash || self.samples_per_pixel != self.kept_count {
             // Pixel hashes are distinct for distinct pixels (an injective map of (x, y)
             // through the bijection `mix_bits`), so kept seeds are never a wrong pixel's.
             self.kept.clear();
             self.kept_pixel_hash = self.pixel_hash;
+            self.kept_count = self.samples_per_pixel;
         }
     }
 
@@ -602,15 +650,15 @@ impl SobolSampler {
                     if self.lanes == Lanes::Avx512 {
                         // SAFETY: the processor supports AVX-512 F, DQ and VL (detected in
                         // `Lanes::detect`; DQ and VL imply F).
-                        unsafe { batch_seeds_avx512(at.pixel_hash, at.dim0, seeds) };
+                        unsafe { batch_seeds_avx512(at.pixel_hash, at.dim0, at.n, seeds) };
                     } else {
                         // SAFETY: the processor supports AVX2 (detected in `Lanes::detect`).
-                        unsafe { batch_seeds_avx2(at.pixel_hash, at.dim0, seeds) };
+                        unsafe { batch_seeds_avx2(at.pixel_hash, at.dim0, at.n, seeds) };
                     }
                 }
-                if at.index < at.n && at.n.is_power_of_two() {
+                if at.index < at.n && at.n <= EXPLICIT_MAX_COUNT {
                     // SAFETY: every AVX-512 processor has AVX2 (and so does `Lanes::Avx2`).
-                    unsafe { fill_lanes_power_of_two_avx2(at.index, at.n, seeds, xs, ys) };
+                    unsafe { fill_lanes_explicit_avx2(at.index, at.n, seeds, xs, ys) };
                 } else if self.lanes == Lanes::Avx512 {
                     // SAFETY: as for `batch_seeds_avx512` above.
                     unsafe { fill_lanes_avx512(at, seeds, xs, ys) };
@@ -621,7 +669,7 @@ impl SobolSampler {
             }
             _ => {
                 if !known {
-                    batch_seeds(at.pixel_hash, at.dim0, seeds);
+                    batch_seeds(at.pixel_hash, at.dim0, at.n, seeds);
                 }
                 fill_lanes(at, seeds, xs, ys);
             }
@@ -761,25 +809,50 @@ mod tests {
         }
     }
 
-    /// The explicit-intrinsics path equals the portable lanes on arbitrary seeds, for every
-    /// power-of-two count and indices spread over it.
+    /// The explicit-intrinsics path equals the portable lanes on arbitrary seeds, for
+    /// counts that are and are not powers of two (up to its limit), indices spread over
+    /// them, and permutation seeds that make `index + seed` wrap around 2^32.
     #[cfg(target_arch = "x86_64")]
     #[test]
-    fn power_of_two_lanes_equal_the_portable_ones() {
+    fn explicit_lanes_equal_the_portable_ones() {
         if !std::arch::is_x86_feature_detected!("avx2") {
             return;
         }
         let mut rng = crate::sampling::Pcg32::new(21, 6);
-        for log_n in 0..32 {
-            let n = 1u32 << log_n;
+        let mut counts: Vec<u32> = (0..=30).map(|k| 1u32 << k).collect();
+        counts.extend([
+            3,
+            5,
+            7,
+            31,
+            33,
+            63,
+            100,
+            1000,
+            65_537,
+            (1 << 30) - 1,
+            (1 << 29) + 3,
+        ]);
+        counts.extend((0..40).map(|_| 2 + rng.next_u32() % (1 << 30)));
+        for n in counts {
             for _ in 0..200 {
                 let mut seeds = BatchSeeds::default();
                 for k in 0..BATCH {
-                    seeds.permutation[k] = rng.next_u32();
+                    let p = if rng.next_u32() % 4 == 0 {
+                        u32::MAX - rng.next_u32() % n.min(64)
+                    } else {
+                        rng.next_u32()
+                    };
+                    seeds.permutation[k] = p;
+                    seeds.permutation_mod[k] = p % n;
                     seeds.x[k] = rng.next_u32();
                     seeds.y[k] = rng.next_u32();
                 }
-                let index = rng.next_u32() & (n - 1);
+                let index = match rng.next_u32() % 4 {
+                    0 => n - 1,
+                    1 => 0,
+                    _ => rng.next_u32() % n,
+                };
                 let at = BatchStart {
                     pixel_hash: 0,
                     dim0: 0,
@@ -790,7 +863,7 @@ mod tests {
                 fill_lanes(at, &seeds, &mut xs, &mut ys);
                 let (mut vx, mut vy) = ([0.0; BATCH], [0.0; BATCH]);
                 // SAFETY: AVX2 is available (checked above).
-                unsafe { fill_lanes_power_of_two_avx2(index, n, &seeds, &mut vx, &mut vy) };
+                unsafe { fill_lanes_explicit_avx2(index, n, &seeds, &mut vx, &mut vy) };
                 assert_eq!(
                     (xs.map(f32::to_bits), ys.map(f32::to_bits)),
                     (vx.map(f32::to_bits), vy.map(f32::to_bits)),
@@ -826,6 +899,8 @@ mod tests {
                 }
             }
             assert_eq!(s.kept.len(), KEPT_BATCHES);
+            // Seeds for another count are not reused.
+            s.samples_per_pixel = if s.samples_per_pixel == 16 { 15 } else { 16 };
         }
     }
 
