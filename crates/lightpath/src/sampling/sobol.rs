@@ -280,10 +280,12 @@ fn batch_seeds(pixel_hash: u64, dim0: u32, n: u32, seeds: &mut BatchSeeds) {
     }
     for k in 0..BATCH {
         let p = seeds.permutation[k];
+        // (A count of 0, only possible by setting the public field, draws no shuffled
+        // index, so its residue is never used.)
         seeds.permutation_mod[k] = if n.is_power_of_two() {
             p & (n - 1)
         } else {
-            p % n
+            p.checked_rem(n).unwrap_or(p)
         };
     }
 }
@@ -901,6 +903,17 @@ mod tests {
             assert_eq!(s.kept.len(), KEPT_BATCHES);
             // Seeds for another count are not reused.
             s.samples_per_pixel = if s.samples_per_pixel == 16 { 15 } else { 16 };
+        }
+        // A count of 0 (the field is public) draws unshuffled indices, without panicking.
+        s.samples_per_pixel = 0;
+        s.start_pixel_sample(UVec2::new(2, 2), 3);
+        let reference = s.clone();
+        for dim in 0..20 {
+            let (got, want) = (s.next_2d(), reference.point(dim));
+            assert_eq!(
+                (got.x.to_bits(), got.y.to_bits()),
+                (want.x.to_bits(), want.y.to_bits())
+            );
         }
     }
 
