@@ -7,8 +7,10 @@
 //! (pixel, sample index, seed). Sample counts that are powers of two stratify best.
 //!
 //! The sampler computes eight dimensions at a time, each lane of a vector register one
-//! dimension (AVX-512DQ or AVX2 where the processor has them); the values are those of
-//! the one-dimension-at-a-time definition, bit for bit.
+//! dimension (AVX2, with AVX-512DQ for the 64-bit hashes, where the processor has them);
+//! the values are those of the one-dimension-at-a-time definition, bit for bit. The
+//! per-dimension seeds depend only on the pixel, so they are hashed at a pixel's first
+//! sample and kept for its others.
 //!
 //! ```xml
 //! <sampler type="sobol" count="64"/>
