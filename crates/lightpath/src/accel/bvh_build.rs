@@ -1164,6 +1164,43 @@ pub(super) fn build(
 mod tests {
     use super::*;
 
+    /// Both partitions put the same primitives left (all that satisfy the predicate, and
+    /// only those) and return the same ranges, bit for bit, for sizes on both sides of
+    /// the copy limit and predicates from all-left to all-right.
+    #[test]
+    fn partitions_agree() {
+        let mut rng = crate::sampling::Pcg32::new(5, 9);
+        let sizes = [0, 1, 2, 3, 63, 64, 65, 1000, BRANCH_FREE_PARTITION, 5000];
+        for n in sizes {
+            for threshold in [0.0f32, 0.1, 0.5, 0.9, 1.01] {
+                let prims: Vec<PrimRef> = (0..n as u32)
+                    .map(|i| {
+                        let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+                        let e = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 0.1;
+                        PrimRef::new(&Bounds3::new(c - e, c + e), i)
+                    })
+                    .collect();
+                let is_left = |p: &PrimRef| p.centroid2().x < 2.0 * threshold;
+                let check = |v: &[PrimRef], (k, l, r): Split| {
+                    assert!(v[..k].iter().all(is_left) && !v[k..].iter().any(is_left));
+                    let mut left: Vec<u32> = v[..k].iter().map(PrimRef::index).collect();
+                    left.sort_unstable();
+                    let bits = |r: &Range| {
+                        [r.bounds.min, r.bounds.max, r.cbounds.min, r.cbounds.max]
+                            .map(|v| v.to_array().map(f32::to_bits))
+                    };
+                    (left, bits(&l), bits(&r))
+                };
+                let mut a = prims.clone();
+                let split = partition_in_place(&mut a, is_left);
+                let want = check(&a, split);
+                let mut b = prims.clone();
+                let split = partition(&mut b, &mut Vec::new(), is_left);
+                assert_eq!(check(&b, split), want, "{n} {threshold}");
+            }
+        }
+    }
+
     #[test]
     fn rank_sort_equals_the_library_sort() {
         let mut rng = crate::sampling::Pcg32::new(11, 3);
