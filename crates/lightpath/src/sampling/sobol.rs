@@ -355,6 +355,40 @@ impl Lanes {
     }
 }
 
+/// Byte indices that reverse the bytes of each 32-bit lane (per 128-bit half, as
+/// `_mm256_shuffle_epi8` indexes).
+const BYTES_REVERSED: [u8; 32] = {
+    let mut t = [0u8; 32];
+    let mut i = 0;
+    while i < 32 {
+        t[i] = (i as u8 & !3) % 16 + 3 - (i as u8 & 3);
+        i += 1;
+    }
+    t
+};
+
+/// Each nibble value with its 4 bits reversed (twice, one per 128-bit half).
+const NIBBLES_REVERSED: [u8; 32] = {
+    let mut t = [0u8; 32];
+    let mut i = 0;
+    while i < 32 {
+        t[i] = ((i as u8 & 15) << 4).reverse_bits();
+        i += 1;
+    }
+    t
+};
+
+/// [`NIBBLES_REVERSED`] in the high half of a byte.
+const NIBBLES_REVERSED_HIGH: [u8; 32] = {
+    let mut t = [0u8; 32];
+    let mut i = 0;
+    while i < 32 {
+        t[i] = NIBBLES_REVERSED[i] << 4;
+        i += 1;
+    }
+    t
+};
+
 /// Counts up to this take [`fill_lanes_explicit_avx2`] (twice the count fits a signed
 /// 32-bit lane).
 const EXPLICIT_MAX_COUNT: u32 = 1 << 30;
@@ -454,51 +488,13 @@ unsafe fn fill_lanes_explicit_avx2(
         x = xor(x, mul(x, splat(0xc7af_e638)));
         x = xor(x, mul(x, splat(0x8d22_f6e6)));
         // Reverse the bytes of each lane, then the bits of each byte (a nibble table).
-        let bytes = _mm256_setr_epi8(
-            3, 2, 1, 0, 7, 6, 5, 4, 11, 10, 9, 8, 15, 14, 13, 12, 3, 2, 1, 0, 7, 6, 5, 4, 11, 10,
-            9, 8, 15, 14, 13, 12,
-        );
-        x = _mm256_shuffle_epi8(x, bytes);
+        let table = |t: &[u8; 32]| {
+            // SAFETY: `t` holds 32 bytes (unaligned load).
+            unsafe { _mm256_loadu_si256(t.as_ptr() as *const __m256i) }
+        };
+        x = _mm256_shuffle_epi8(x, table(&BYTES_REVERSED));
         let low_nibbles = _mm256_set1_epi8(0x0f);
-        // Nibble k reversed, in the high (`hi`) or low (`lo`) half of a byte.
-        let hi = _mm256_setr_epi8(
-            0x00,
-            0x80u8 as i8,
-            0x40,
-            0xc0u8 as i8,
-            0x20,
-            0xa0u8 as i8,
-            0x60,
-            0xe0u8 as i8,
-            0x10,
-            0x90u8 as i8,
-            0x50,
-            0xd0u8 as i8,
-            0x30,
-            0xb0u8 as i8,
-            0x70,
-            0xf0u8 as i8,
-            0x00,
-            0x80u8 as i8,
-            0x40,
-            0xc0u8 as i8,
-            0x20,
-            0xa0u8 as i8,
-            0x60,
-            0xe0u8 as i8,
-            0x10,
-            0x90u8 as i8,
-            0x50,
-            0xd0u8 as i8,
-            0x30,
-            0xb0u8 as i8,
-            0x70,
-            0xf0u8 as i8,
-        );
-        let lo = _mm256_setr_epi8(
-            0x0, 0x8, 0x4, 0xc, 0x2, 0xa, 0x6, 0xe, 0x1, 0x9, 0x5, 0xd, 0x3, 0xb, 0x7, 0xf, 0x0,
-            0x8, 0x4, 0xc, 0x2, 0xa, 0x6, 0xe, 0x1, 0x9, 0x5, 0xd, 0x3, 0xb, 0x7, 0xf,
-        );
+        let (hi, lo) = (table(&NIBBLES_REVERSED_HIGH), table(&NIBBLES_REVERSED));
         let low = _mm256_shuffle_epi8(hi, and(x, low_nibbles));
         let high = _mm256_shuffle_epi8(lo, and(_mm256_srli_epi16::<4>(x), low_nibbles));
         or(low, high)
