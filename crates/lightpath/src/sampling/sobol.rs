@@ -332,6 +332,7 @@ lanes_for!(
 
 /// The vector units [`SobolSampler::refill`] may use, found once per sampler.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 enum Lanes {
     Avx512,
     Avx2,
@@ -357,6 +358,7 @@ impl Lanes {
 
 /// Byte indices that reverse the bytes of each 32-bit lane (per 128-bit half, as
 /// `_mm256_shuffle_epi8` indexes).
+#[cfg(target_arch = "x86_64")]
 const BYTES_REVERSED: [u8; 32] = {
     let mut t = [0u8; 32];
     let mut i = 0;
@@ -368,6 +370,7 @@ const BYTES_REVERSED: [u8; 32] = {
 };
 
 /// Each nibble value with its 4 bits reversed (twice, one per 128-bit half).
+#[cfg(target_arch = "x86_64")]
 const NIBBLES_REVERSED: [u8; 32] = {
     let mut t = [0u8; 32];
     let mut i = 0;
@@ -379,6 +382,7 @@ const NIBBLES_REVERSED: [u8; 32] = {
 };
 
 /// [`NIBBLES_REVERSED`] in the high half of a byte.
+#[cfg(target_arch = "x86_64")]
 const NIBBLES_REVERSED_HIGH: [u8; 32] = {
     let mut t = [0u8; 32];
     let mut i = 0;
@@ -391,6 +395,7 @@ const NIBBLES_REVERSED_HIGH: [u8; 32] = {
 
 /// Counts up to this take [`fill_lanes_explicit_avx2`] (twice the count fits a signed
 /// 32-bit lane).
+#[cfg(target_arch = "x86_64")]
 const EXPLICIT_MAX_COUNT: u32 = 1 << 30;
 
 /// [`fill_lanes`] for a sample index below the count (up to [`EXPLICIT_MAX_COUNT`]) in
