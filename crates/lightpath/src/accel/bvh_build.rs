@@ -153,6 +153,20 @@ impl Range {
         self.cbounds.grow_point(p.centroid2());
     }
 
+    /// [`Range::grow`] if `keep`, else no change, without a branch: the primitive is
+    /// masked to the empty box (min/max with ±∞ change nothing, so the result is the
+    /// same bit for bit).
+    #[inline(always)]
+    fn grow_if(&mut self, p: &PrimRef, keep: bool) {
+        let m = BVec4A::splat(keep);
+        let (inf, neg_inf) = (Vec4::INFINITY, Vec4::NEG_INFINITY);
+        let c = p.centroid2();
+        self.bounds.min = self.bounds.min.min(Vec4::select(m, p.min, inf));
+        self.bounds.max = self.bounds.max.max(Vec4::select(m, p.max, neg_inf));
+        self.cbounds.min = self.cbounds.min.min(Vec4::select(m, c, inf));
+        self.cbounds.max = self.cbounds.max.max(Vec4::select(m, c, neg_inf));
+    }
+
     fn merge(mut self, o: Range) -> Range {
         self.bounds = self.bounds.union(&o.bounds);
         self.cbounds = self.cbounds.union(&o.cbounds);
@@ -461,18 +475,16 @@ const PLACEHOLDER: BvhNode = BvhNode {
     count: 0,
 };
 
-/// Partitions a range by `is_left` without a branch on the data (a split between bins
-/// sends neighbouring primitives either way at random, so a branchy partition
-/// mispredicts about every other primitive): every primitive is written both at the
-/// next left position and at the next right position (counting down from the end) of
-/// `tmp`, and only the cursor of its side advances, so the other copy is overwritten
-/// later. Both sides' ranges grow with the primitive masked out of the other. Returns
-/// the size of the left side (kept in order; the right side ends up reversed) and the
-/// two ranges.
+/// Partitions a range by `is_left` without a branch on the data (low in the tree a
+/// split between bins sends neighbouring primitives either way at random, so a branchy
+/// partition mispredicts about every other primitive): from a copy in `tmp`, every
+/// primitive is written back both at the next left position and at the next right
+/// position (counting down from the end) of `prims`, and only the cursor of its side
+/// advances, so the other copy is overwritten later. Returns the size of the left side
+/// (kept in order; the right side ends up reversed) and the two ranges.
 ///
 /// Ranges above [`BRANCH_FREE_PARTITION`] primitives are partitioned in place from both
-/// ends instead ([`partition_in_place`]): there the copy's memory traffic costs more
-/// than the mispredictions.
+/// ends instead ([`partition_in_place`]).
 #[inline]
 fn partition(
     prims: &mut [PrimRef],
@@ -487,7 +499,6 @@ fn partition(
     tmp.extend_from_slice(prims);
     let (mut l, mut r) = (Range::EMPTY, Range::EMPTY);
     let (mut lo, mut hi) = (0usize, n);
-    let (inf, neg_inf) = (Vec4::INFINITY, Vec4::NEG_INFINITY);
     for p in tmp.iter() {
         let left = is_left(p);
         // lo < hi here: one slot is left for each primitive still to place.
@@ -495,16 +506,8 @@ fn partition(
         prims[hi - 1] = *p;
         lo += usize::from(left);
         hi -= usize::from(!left);
-        let m = BVec4A::splat(left);
-        let c = p.centroid2();
-        l.bounds.min = l.bounds.min.min(Vec4::select(m, p.min, inf));
-        l.bounds.max = l.bounds.max.max(Vec4::select(m, p.max, neg_inf));
-        l.cbounds.min = l.cbounds.min.min(Vec4::select(m, c, inf));
-        l.cbounds.max = l.cbounds.max.max(Vec4::select(m, c, neg_inf));
-        r.bounds.min = r.bounds.min.min(Vec4::select(m, inf, p.min));
-        r.bounds.max = r.bounds.max.max(Vec4::select(m, neg_inf, p.max));
-        r.cbounds.min = r.cbounds.min.min(Vec4::select(m, inf, c));
-        r.cbounds.max = r.cbounds.max.max(Vec4::select(m, neg_inf, c));
+        l.grow_if(p, left);
+        r.grow_if(p, !left);
     }
     (lo, l, r)
 }

@@ -369,29 +369,26 @@ const BYTES_REVERSED: [u8; 32] = {
     t
 };
 
-/// Each nibble value with its 4 bits reversed (twice, one per 128-bit half).
+/// Each nibble value with its 4 bits reversed, shifted left by `shift` (twice, one per
+/// 128-bit half, as `_mm256_shuffle_epi8` indexes).
 #[cfg(target_arch = "x86_64")]
-const NIBBLES_REVERSED: [u8; 32] = {
+const fn nibbles_reversed(shift: u32) -> [u8; 32] {
     let mut t = [0u8; 32];
     let mut i = 0;
     while i < 32 {
-        t[i] = ((i as u8 & 15) << 4).reverse_bits();
+        t[i] = ((i as u8 & 15) << 4).reverse_bits() << shift;
         i += 1;
     }
     t
-};
+}
 
-/// [`NIBBLES_REVERSED`] in the high half of a byte.
+/// Reversed nibbles in the low half of a byte.
 #[cfg(target_arch = "x86_64")]
-const NIBBLES_REVERSED_HIGH: [u8; 32] = {
-    let mut t = [0u8; 32];
-    let mut i = 0;
-    while i < 32 {
-        t[i] = NIBBLES_REVERSED[i] << 4;
-        i += 1;
-    }
-    t
-};
+const NIBBLES_REVERSED: [u8; 32] = nibbles_reversed(0);
+
+/// Reversed nibbles in the high half of a byte.
+#[cfg(target_arch = "x86_64")]
+const NIBBLES_REVERSED_HIGH: [u8; 32] = nibbles_reversed(4);
 
 /// Counts up to this take [`fill_lanes_explicit_avx2`] (twice the count fits a signed
 /// 32-bit lane).
