@@ -123,27 +123,37 @@ impl RayLanes {
 /// direction component, so the plain test needs no separate mask for them; the
 /// axis-parallel variant, which orders each axis's two distances, masks them by count.
 trait NodeTest {
+    /// The eight entry distances, as the test leaves them.
+    type Near: Copy;
     fn test<const AXIS_PARALLEL: bool>(
         node: &Bvh8Node,
         ray: &RayLanes,
         t_min: f32,
         t_max: f32,
-        near: &mut [f32; 8],
-    ) -> u32;
+    ) -> (u32, Self::Near);
+    /// The entry distance of child `k` (below 8).
+    fn near(near: &Self::Near, k: usize) -> f32;
 }
 
 /// Two 4-lane halves (SSE on x86-64, a portable fallback elsewhere).
 struct Portable;
 
 impl NodeTest for Portable {
+    type Near = [f32; 8];
+
+    #[inline(always)]
+    fn near(near: &[f32; 8], k: usize) -> f32 {
+        near[k]
+    }
+
     #[inline(always)]
     fn test<const AXIS_PARALLEL: bool>(
         node: &Bvh8Node,
         ray: &RayLanes,
         t_min: f32,
         t_max: f32,
-        near: &mut [f32; 8],
-    ) -> u32 {
+    ) -> (u32, [f32; 8]) {
+        let mut near = [0.0; 8];
         let mut mask = 0;
         for half in 0..2 {
             let lanes = |p: usize| Vec4::from_slice(&node.planes[p][4 * half..4 * half + 4]);
@@ -175,7 +185,7 @@ impl NodeTest for Portable {
                 }
             }
         }
-        mask
+        (mask, near)
     }
 }
 
@@ -185,16 +195,22 @@ struct Avx2;
 
 #[cfg(target_arch = "x86_64")]
 impl NodeTest for Avx2 {
+    type Near = [f32; 8];
+
+    #[inline(always)]
+    fn near(near: &[f32; 8], k: usize) -> f32 {
+        near[k]
+    }
+
     #[inline(always)]
     fn test<const AXIS_PARALLEL: bool>(
         node: &Bvh8Node,
         ray: &RayLanes,
         t_min: f32,
         t_max: f32,
-        near: &mut [f32; 8],
-    ) -> u32 {
+    ) -> (u32, Self::Near) {
         // SAFETY: `Avx2` is only used by traversals entered after detecting AVX2.
-        unsafe { avx2_test::<AXIS_PARALLEL>(node, ray, t_min, t_max, near) }
+        unsafe { avx2_test::<AXIS_PARALLEL>(node, ray, t_min, t_max) }
     }
 }
 
@@ -206,8 +222,7 @@ unsafe fn avx2_test<const AXIS_PARALLEL: bool>(
     ray: &RayLanes,
     t_min: f32,
     t_max: f32,
-    near: &mut [f32; 8],
-) -> u32 {
+) -> (u32, [f32; 8]) {
     use std::arch::x86_64::*;
     let planes = node.planes.as_ptr() as *const f32;
     let mut t0 = [_mm256_setzero_ps(); 3];
@@ -247,6 +262,7 @@ unsafe fn avx2_test<const AXIS_PARALLEL: bool>(
         _mm256_min_ps(t1[0], t1[1]),
         _mm256_min_ps(t1[2], _mm256_set1_ps(t_max * ROBUST_FAR)),
     );
+    let mut near = [0.0; 8];
     // SAFETY: `near` holds eight floats.
     unsafe { _mm256_storeu_ps(near.as_mut_ptr(), lo) };
     let hit = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(lo, hi)) as u32;
@@ -254,9 +270,12 @@ unsafe fn avx2_test<const AXIS_PARALLEL: bool>(
         // SAFETY: `count` is 32 bytes at offset 224 of a 64-byte aligned node.
         let count = unsafe { _mm256_load_si256(node.count.as_ptr() as *const __m256i) };
         let unused = _mm256_cmpeq_epi32(count, _mm256_set1_epi32(-1));
-        hit & !(_mm256_movemask_ps(_mm256_castsi256_ps(unused)) as u32)
+        (
+            hit & !(_mm256_movemask_ps(_mm256_castsi256_ps(unused)) as u32),
+            near,
+        )
     } else {
-        hit
+        (hit, near)
     }
 }
 
@@ -372,6 +391,91 @@ impl Bvh8 {
         }
         #[cfg(not(target_arch = "x86_64"))]
         let _ = child;
+    }
+
+    /// The closest-hit descent from a node whose children in `mask` (at least one) the
+    /// ray enters at distances `near`: returns the nearest child and pushes the others
+    /// sorted by decreasing distance, so that the next nearest is on top. Ties go to the
+    /// lower slot. Up to four children are sorted by a network of compare-exchanges on
+    /// keys that order like the distances ([`order_key`]), which compiles to conditional
+    /// moves: the order of the children of an incoherent ray is a coin toss that a branch
+    /// predictor loses.
+    #[inline(always)]
+    fn descend<T: NodeTest, P: Fn(u32)>(
+        &self,
+        node: &Bvh8Node,
+        mask: u32,
+        near: &T::Near,
+        stack: &mut [MaybeUninit<Entry>],
+        sp: &mut usize,
+        prefetch_leaf: &P,
+    ) -> Entry {
+        let entry = |key: u64| {
+            let k = key as usize & 7;
+            Entry {
+                child: node.child[k],
+                count: node.count[k],
+                dist: T::near(near, k),
+            }
+        };
+        let key = |k: u32| order_key(T::near(near, k as usize), k);
+        let a = key(mask.trailing_zeros());
+        let rest = mask & (mask - 1);
+        if rest == 0 {
+            // One child: descend without the stack.
+            return entry(a);
+        }
+        let mut push = |key: u64| {
+            let e = entry(key);
+            self.prefetch(e.child, e.count, prefetch_leaf);
+            stack[*sp].write(e);
+            *sp += 1;
+        };
+        let b = key(rest.trailing_zeros());
+        let rest = rest & (rest - 1);
+        if rest == 0 {
+            let (a, b) = sort2(a, b);
+            push(b);
+            return entry(a);
+        }
+        let c = key(rest.trailing_zeros());
+        let rest = rest & (rest - 1);
+        if rest == 0 {
+            let (a, b) = sort2(a, b);
+            let (b, c) = sort2(b, c);
+            let (a, b) = sort2(a, b);
+            push(c);
+            push(b);
+            return entry(a);
+        }
+        let d = key(rest.trailing_zeros());
+        let rest = rest & (rest - 1);
+        if rest == 0 {
+            let (a, b) = sort2(a, b);
+            let (c, d) = sort2(c, d);
+            let (a, c) = sort2(a, c);
+            let (b, d) = sort2(b, d);
+            let (b, c) = sort2(b, c);
+            push(d);
+            push(c);
+            push(b);
+            return entry(a);
+        }
+        // Five or more (rare): the keys sorted in a small array.
+        let mut keys = [u64::MAX; 8];
+        keys[..4].copy_from_slice(&[a, b, c, d]);
+        let mut n = 4;
+        let mut bits = rest;
+        while bits != 0 {
+            keys[n] = key(bits.trailing_zeros());
+            bits &= bits - 1;
+            n += 1;
+        }
+        keys[..n].sort_unstable();
+        for &k in keys[1..n].iter().rev() {
+            push(k);
+        }
+        entry(keys[0])
     }
 
     /// Closest hit, front to back (see [`crate::accel::Accel::intersect`]).
@@ -498,7 +602,6 @@ impl Bvh8 {
         let mut any = false;
         let mut stack = [const { MaybeUninit::<Entry>::uninit() }; STACK_SIZE];
         let mut sp = 0usize;
-        let mut near = [0.0f32; 8];
         let mut cur = Entry {
             child: self.root.0,
             count: self.root.1,
@@ -514,50 +617,16 @@ impl Bvh8 {
                 any |= leaf(cur.child, cur.count, &mut t_max);
             } else {
                 let node = &self.nodes[cur.child as usize];
-                let mask = T::test::<AXIS_PARALLEL>(node, &lanes, ray.t_min, t_max, &mut near);
+                let (mask, near) = T::test::<AXIS_PARALLEL>(node, &lanes, ray.t_min, t_max);
                 if mask != 0 {
-                    let entry = |k: u32| Entry {
-                        child: node.child[k as usize],
-                        count: node.count[k as usize],
-                        dist: near[k as usize],
-                    };
-                    let a = entry(mask.trailing_zeros());
-                    let rest = mask & (mask - 1);
-                    if rest == 0 {
-                        // One child: descend without the stack.
-                        cur = a;
-                        continue;
-                    }
-                    let b = entry(rest.trailing_zeros());
-                    let rest = rest & (rest - 1);
-                    if rest == 0 {
-                        let (n, f) = if a.dist <= b.dist { (a, b) } else { (b, a) };
-                        self.prefetch(f.child, f.count, &prefetch_leaf);
-                        stack[sp].write(f);
-                        sp += 1;
-                        cur = n;
-                        continue;
-                    }
-                    // Three or more: push them sorted by decreasing distance, so the
-                    // nearest is on top, and take it.
-                    let base = sp;
-                    let mut bits = mask;
-                    while bits != 0 {
-                        let e = entry(bits.trailing_zeros());
-                        bits &= bits - 1;
-                        self.prefetch(e.child, e.count, &prefetch_leaf);
-                        let mut i = sp;
-                        // SAFETY: entries base..sp were written above.
-                        while i > base && unsafe { stack[i - 1].assume_init() }.dist < e.dist {
-                            stack[i] = stack[i - 1];
-                            i -= 1;
-                        }
-                        stack[i].write(e);
-                        sp += 1;
-                    }
-                    sp -= 1;
-                    // SAFETY: written in the loop above.
-                    cur = unsafe { stack[sp].assume_init() };
+                    cur = self.descend::<T, P>(
+                        node,
+                        mask,
+                        &near,
+                        &mut stack,
+                        &mut sp,
+                        &prefetch_leaf,
+                    );
                     continue;
                 }
             }
@@ -593,7 +662,6 @@ impl Bvh8 {
         let lanes = RayLanes::new(ray);
         let mut stack = [const { MaybeUninit::<Entry>::uninit() }; STACK_SIZE];
         let mut sp = 0usize;
-        let mut near = [0.0f32; 8];
         let mut cur = Entry {
             child: self.root.0,
             count: self.root.1,
@@ -611,8 +679,7 @@ impl Bvh8 {
                 }
             } else {
                 let node = &self.nodes[cur.child as usize];
-                let mut mask =
-                    T::test::<AXIS_PARALLEL>(node, &lanes, ray.t_min, ray.t_max, &mut near);
+                let (mut mask, _) = T::test::<AXIS_PARALLEL>(node, &lanes, ray.t_min, ray.t_max);
                 if mask != 0 {
                     let k = mask.trailing_zeros() as usize;
                     mask &= mask - 1;
@@ -645,6 +712,21 @@ impl Bvh8 {
             cur = unsafe { stack[sp].assume_init() };
         }
     }
+}
+
+/// A key that orders like `dist` (a float that is not NaN, ties broken by `slot`): the
+/// float's bits made monotonic as an unsigned integer, above the slot.
+#[inline(always)]
+fn order_key(dist: f32, slot: u32) -> u64 {
+    let bits = dist.to_bits();
+    let flip = ((bits as i32 >> 31) as u32) | 0x8000_0000;
+    (u64::from(bits ^ flip) << 32) | u64::from(slot)
+}
+
+/// The two keys in order (compiled to conditional moves, not branches).
+#[inline(always)]
+fn sort2(a: u64, b: u64) -> (u64, u64) {
+    (a.min(b), a.max(b))
 }
 
 /// Rays in flight at once in a stream traversal (see [`Bvh8::intersect_stream`]).
@@ -896,17 +978,20 @@ impl Bvh8 {
             }
         } else {
             let node = &self.nodes[cur.child as usize];
-            let mut near = [0.0f32; 8];
-            let mask = if f.axis_parallel {
-                T::test::<true>(node, &f.lanes, ray.t_min, f.t_max, &mut near)
+            let (mask, near) = if f.axis_parallel {
+                T::test::<true>(node, &f.lanes, ray.t_min, f.t_max)
             } else {
-                T::test::<false>(node, &f.lanes, ray.t_min, f.t_max, &mut near)
+                T::test::<false>(node, &f.lanes, ray.t_min, f.t_max)
             };
             if mask != 0 {
                 let entry = |k: u32| Entry {
                     child: node.child[k as usize],
                     count: node.count[k as usize],
-                    dist: if ANY_HIT { 0.0 } else { near[k as usize] },
+                    dist: if ANY_HIT {
+                        0.0
+                    } else {
+                        T::near(&near, k as usize)
+                    },
                 };
                 let a = entry(mask.trailing_zeros());
                 let rest = mask & (mask - 1);
@@ -923,34 +1008,7 @@ impl Bvh8 {
                     }
                     a
                 } else {
-                    let b = entry(rest.trailing_zeros());
-                    if rest & (rest - 1) == 0 {
-                        let (n, far) = if a.dist <= b.dist { (a, b) } else { (b, a) };
-                        self.prefetch(far.child, far.count, prefetch_leaf);
-                        stack[f.sp].write(far);
-                        f.sp += 1;
-                        n
-                    } else {
-                        // Pushed sorted by decreasing distance, the nearest taken.
-                        let base = f.sp;
-                        let mut bits = mask;
-                        while bits != 0 {
-                            let e = entry(bits.trailing_zeros());
-                            bits &= bits - 1;
-                            self.prefetch(e.child, e.count, prefetch_leaf);
-                            let mut i = f.sp;
-                            // SAFETY: entries base..sp were written above.
-                            while i > base && unsafe { stack[i - 1].assume_init() }.dist < e.dist {
-                                stack[i] = stack[i - 1];
-                                i -= 1;
-                            }
-                            stack[i].write(e);
-                            f.sp += 1;
-                        }
-                        f.sp -= 1;
-                        // SAFETY: written in the loop above.
-                        unsafe { stack[f.sp].assume_init() }
-                    }
+                    self.descend::<T, P>(node, mask, &near, stack, &mut f.sp, prefetch_leaf)
                 };
                 self.prefetch(next.child, next.count, prefetch_leaf);
                 f.cur = next;
@@ -987,6 +1045,56 @@ mod tests {
     use super::*;
     use crate::accel::testing::check_kind_on_all_scenes;
     use crate::accel::{Accel, AccelKind};
+
+    /// The descent returns the nearest child and leaves the others on the stack in the
+    /// order a sort by (distance, slot) gives, for every mask and for distances with
+    /// ties, signed zeros, negatives and infinities.
+    #[test]
+    fn descent_sorts_children_by_distance_then_slot() {
+        let mut node = EMPTY_NODE;
+        for k in 0..8 {
+            node.child[k] = 100 + k as u32;
+            node.count[k] = (k as u32 % 3) * 4;
+        }
+        let tree = Bvh8::build(
+            &crate::accel::bvh::tests::random_boxes(10, 1),
+            &BuildSettings::default(),
+        );
+        let values = [0.0, -0.0, 1.0, 1.0, 2.5, -3.0, f32::INFINITY, 1e-30];
+        let mut rng = crate::sampling::Pcg32::new(3, 4);
+        for round in 0..4000 {
+            let mut near = [0.0f32; 8];
+            for d in near.iter_mut() {
+                *d = if round % 2 == 0 {
+                    values[(rng.next_u32() % 8) as usize]
+                } else {
+                    rng.next_f32() * 4.0 - 1.0
+                };
+            }
+            let mask = 1 + round as u32 % 255;
+            let mut expected: Vec<usize> = (0..8).filter(|k| mask & (1 << k) != 0).collect();
+            expected.sort_by(|&a, &b| near[a].total_cmp(&near[b]).then(a.cmp(&b)));
+            // `total_cmp` orders -0 before +0, as the keys do.
+            let mut stack = [const { MaybeUninit::<Entry>::uninit() }; 16];
+            let mut sp = 3;
+            let first =
+                tree.descend::<Portable, _>(&node, mask, &near, &mut stack, &mut sp, &|_| {});
+            let mut got = vec![first];
+            while sp > 3 {
+                sp -= 1;
+                got.push(unsafe { stack[sp].assume_init() });
+            }
+            assert_eq!(got.len(), expected.len(), "mask {mask:#b}");
+            for (e, &k) in got.iter().zip(&expected) {
+                assert_eq!(
+                    (e.child, e.count),
+                    (node.child[k], node.count[k]),
+                    "mask {mask:#b} near {near:?}"
+                );
+                assert_eq!(e.dist.to_bits(), near[k].to_bits());
+            }
+        }
+    }
 
     /// The shared accelerator property test (closest and any hits equal the brute-force
     /// list's on random, flat, degenerate and lattice meshes, with axis-parallel rays,

@@ -98,9 +98,12 @@ pub struct TriangleMesh {
 #[derive(Debug, Clone, Copy)]
 pub struct WatertightRay {
     pub origin: Vec3,
+    /// Each below 3 (see [`WatertightRay::axes`]).
     kx: usize,
     ky: usize,
     kz: usize,
+    /// `(o[kx], o[ky], o[kz])`, permuted once here rather than at every block.
+    origin_permuted: [f32; 3],
     shear: Vec3,
 }
 
@@ -121,11 +124,13 @@ impl WatertightRay {
         // Indexing an array, not the vector (whose index is a three-way branch).
         let da = d.to_array();
         let (dx, dy, dz) = (da[kx], da[ky], da[kz]);
+        let o = ray.origin.to_array();
         WatertightRay {
             origin: ray.origin,
             kx,
             ky,
             kz,
+            origin_permuted: [o[kx], o[ky], o[kz]],
             shear: Vec3::new(-dx / dz, -dy / dz, 1.0 / dz),
         }
     }
@@ -133,15 +138,18 @@ impl WatertightRay {
     /// The permutation `(kx, ky, kz)` that makes the largest direction component z.
     #[inline(always)]
     pub fn axes(&self) -> (usize, usize, usize) {
+        // SAFETY: `new` is the only constructor, and it sets each axis below 3. Saying so
+        // lets the per-block vertex loads `p[v][k]` go without bounds checks.
+        unsafe {
+            std::hint::assert_unchecked(self.kx < 3 && self.ky < 3 && self.kz < 3);
+        }
         (self.kx, self.ky, self.kz)
     }
 
-    /// The origin's components `(o[kx], o[ky], o[kz])` (indexing an array, not the
-    /// vector, whose index is a three-way branch).
+    /// The origin's components `(o[kx], o[ky], o[kz])`.
     #[inline(always)]
     pub fn origin_permuted(&self) -> [f32; 3] {
-        let o = self.origin.to_array();
-        [o[self.kx], o[self.ky], o[self.kz]]
+        self.origin_permuted
     }
 
     /// The shear `(-dx/dz, -dy/dz, 1/dz)` of the permuted direction.
