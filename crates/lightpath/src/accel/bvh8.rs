@@ -123,29 +123,19 @@ impl RayLanes {
 /// direction component, so the plain test needs no separate mask for them; the
 /// axis-parallel variant, which orders each axis's two distances, masks them by count.
 trait NodeTest {
-    /// The eight entry distances, as the test leaves them.
-    type Near: Copy;
+    /// The hit mask and the eight entry distances.
     fn test<const AXIS_PARALLEL: bool>(
         node: &Bvh8Node,
         ray: &RayLanes,
         t_min: f32,
         t_max: f32,
-    ) -> (u32, Self::Near);
-    /// The entry distance of child `k` (below 8).
-    fn near(near: &Self::Near, k: usize) -> f32;
+    ) -> (u32, [f32; 8]);
 }
 
 /// Two 4-lane halves (SSE on x86-64, a portable fallback elsewhere).
 struct Portable;
 
 impl NodeTest for Portable {
-    type Near = [f32; 8];
-
-    #[inline(always)]
-    fn near(near: &[f32; 8], k: usize) -> f32 {
-        near[k]
-    }
-
     #[inline(always)]
     fn test<const AXIS_PARALLEL: bool>(
         node: &Bvh8Node,
@@ -195,20 +185,13 @@ struct Avx2;
 
 #[cfg(target_arch = "x86_64")]
 impl NodeTest for Avx2 {
-    type Near = [f32; 8];
-
-    #[inline(always)]
-    fn near(near: &[f32; 8], k: usize) -> f32 {
-        near[k]
-    }
-
     #[inline(always)]
     fn test<const AXIS_PARALLEL: bool>(
         node: &Bvh8Node,
         ray: &RayLanes,
         t_min: f32,
         t_max: f32,
-    ) -> (u32, Self::Near) {
+    ) -> (u32, [f32; 8]) {
         // SAFETY: `Avx2` is only used by traversals entered after detecting AVX2.
         unsafe { avx2_test::<AXIS_PARALLEL>(node, ray, t_min, t_max) }
     }
@@ -401,11 +384,11 @@ impl Bvh8 {
     /// moves: the order of the children of an incoherent ray is a coin toss that a branch
     /// predictor loses.
     #[inline(always)]
-    fn descend<T: NodeTest, P: Fn(u32)>(
+    fn descend<P: Fn(u32)>(
         &self,
         node: &Bvh8Node,
         mask: u32,
-        near: &T::Near,
+        near: &[f32; 8],
         stack: &mut [MaybeUninit<Entry>],
         sp: &mut usize,
         prefetch_leaf: &P,
@@ -415,10 +398,10 @@ impl Bvh8 {
             Entry {
                 child: node.child[k],
                 count: node.count[k],
-                dist: T::near(near, k),
+                dist: near[k],
             }
         };
-        let key = |k: u32| order_key(T::near(near, k as usize), k);
+        let key = |k: u32| order_key(near[k as usize], k);
         let a = key(mask.trailing_zeros());
         let rest = mask & (mask - 1);
         if rest == 0 {
@@ -619,14 +602,7 @@ impl Bvh8 {
                 let node = &self.nodes[cur.child as usize];
                 let (mask, near) = T::test::<AXIS_PARALLEL>(node, &lanes, ray.t_min, t_max);
                 if mask != 0 {
-                    cur = self.descend::<T, P>(
-                        node,
-                        mask,
-                        &near,
-                        &mut stack,
-                        &mut sp,
-                        &prefetch_leaf,
-                    );
+                    cur = self.descend(node, mask, &near, &mut stack, &mut sp, &prefetch_leaf);
                     continue;
                 }
             }
@@ -987,11 +963,7 @@ impl Bvh8 {
                 let entry = |k: u32| Entry {
                     child: node.child[k as usize],
                     count: node.count[k as usize],
-                    dist: if ANY_HIT {
-                        0.0
-                    } else {
-                        T::near(&near, k as usize)
-                    },
+                    dist: if ANY_HIT { 0.0 } else { near[k as usize] },
                 };
                 let a = entry(mask.trailing_zeros());
                 let rest = mask & (mask - 1);
@@ -1008,7 +980,7 @@ impl Bvh8 {
                     }
                     a
                 } else {
-                    self.descend::<T, P>(node, mask, &near, stack, &mut f.sp, prefetch_leaf)
+                    self.descend(node, mask, &near, stack, &mut f.sp, prefetch_leaf)
                 };
                 self.prefetch(next.child, next.count, prefetch_leaf);
                 f.cur = next;
@@ -1077,8 +1049,7 @@ mod tests {
             // `total_cmp` orders -0 before +0, as the keys do.
             let mut stack = [const { MaybeUninit::<Entry>::uninit() }; 16];
             let mut sp = 3;
-            let first =
-                tree.descend::<Portable, _>(&node, mask, &near, &mut stack, &mut sp, &|_| {});
+            let first = tree.descend(&node, mask, &near, &mut stack, &mut sp, &|_| {});
             let mut got = vec![first];
             while sp > 3 {
                 sp -= 1;
