@@ -960,17 +960,14 @@ impl Bvh8 {
                 T::test::<false>(node, &f.lanes, ray.t_min, f.t_max)
             };
             if mask != 0 {
-                let entry = |k: u32| Entry {
-                    child: node.child[k as usize],
-                    count: node.count[k as usize],
-                    dist: if ANY_HIT { 0.0 } else { near[k as usize] },
-                };
-                let a = entry(mask.trailing_zeros());
-                let rest = mask & (mask - 1);
-                let next = if rest == 0 {
-                    a
-                } else if ANY_HIT {
-                    let mut bits = rest;
+                let next = if ANY_HIT {
+                    // Any hit: the first child next, the others pushed in slot order.
+                    let entry = |k: u32| Entry {
+                        child: node.child[k as usize],
+                        count: node.count[k as usize],
+                        dist: 0.0,
+                    };
+                    let mut bits = mask & (mask - 1);
                     while bits != 0 {
                         let e = entry(bits.trailing_zeros());
                         bits &= bits - 1;
@@ -978,7 +975,7 @@ impl Bvh8 {
                         stack[f.sp].write(e);
                         f.sp += 1;
                     }
-                    a
+                    entry(mask.trailing_zeros())
                 } else {
                     self.descend(node, mask, &near, stack, &mut f.sp, prefetch_leaf)
                 };
