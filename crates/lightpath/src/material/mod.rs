@@ -260,9 +260,14 @@ impl Material {
     /// f·|cos θi| in the local shading frame.
     #[inline(always)]
     pub fn eval_local(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> Vec3 {
-        // Diffuse inline at the caller (the common case), the rest behind a call.
+        // Diffuse, also one-sided (Mitsuba's), inline at the caller (the common case);
+        // the rest behind a call.
         match self {
             Material::Diffuse(m) => m.eval(uv, wo, wi),
+            Material::OneSided(m) => match &*m.inner {
+                Material::Diffuse(d) => OneSided::eval_with(wo, wi, || d.eval(uv, wo, wi)),
+                _ => self.eval_local_other(uv, wo, wi),
+            },
             _ => self.eval_local_other(uv, wo, wi),
         }
     }
@@ -289,9 +294,13 @@ impl Material {
     /// The sampling density in the local shading frame.
     #[inline(always)]
     pub fn pdf_local(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> f32 {
-        // Diffuse inline at the caller (the common case), the rest behind a call.
+        // Diffuse, also one-sided, inline at the caller; the rest behind a call.
         match self {
             Material::Diffuse(m) => m.pdf(uv, wo, wi),
+            Material::OneSided(m) => match &*m.inner {
+                Material::Diffuse(d) => OneSided::pdf_with(wo, wi, || d.pdf(uv, wo, wi)),
+                _ => self.pdf_local_other(uv, wo, wi),
+            },
             _ => self.pdf_local_other(uv, wo, wi),
         }
     }
@@ -318,9 +327,13 @@ impl Material {
     /// Samples in the local shading frame (`wi` is local too).
     #[inline(always)]
     pub fn sample_local(&self, uv: Vec2, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
-        // Diffuse inline at the caller (the common case), the rest behind a call.
+        // Diffuse, also one-sided, inline at the caller; the rest behind a call.
         match self {
             Material::Diffuse(m) => m.sample(uv, wo, u_lobe, u),
+            Material::OneSided(m) => match &*m.inner {
+                Material::Diffuse(d) => OneSided::sample_with(wo, || d.sample(uv, wo, u_lobe, u)),
+                _ => self.sample_local_other(uv, wo, u_lobe, u),
+            },
             _ => self.sample_local_other(uv, wo, u_lobe, u),
         }
     }
@@ -383,6 +396,8 @@ impl Material {
             | Material::Plastic(_)
             | Material::RoughPlastic(_)
             | Material::Principled(_) => false,
+            // One-sided diffuse (Mitsuba's) without the call.
+            Material::OneSided(m) if matches!(*m.inner, Material::Diffuse(_)) => false,
             Material::TwoSided(_)
             | Material::OneSided(_)
             | Material::NormalMap(_)

@@ -22,25 +22,45 @@ pub struct OneSided {
 
 impl OneSided {
     pub fn eval(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> Vec3 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return Vec3::ZERO;
-        }
-        self.inner.eval_local(uv, wo, wi)
+        Self::eval_with(wo, wi, || self.inner.eval_local(uv, wo, wi))
     }
 
     pub fn pdf(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return 0.0;
-        }
-        self.inner.pdf_local(uv, wo, wi)
+        Self::pdf_with(wo, wi, || self.inner.pdf_local(uv, wo, wi))
     }
 
     pub fn sample(&self, uv: Vec2, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        Self::sample_with(wo, || self.inner.sample_local(uv, wo, u_lobe, u))
+    }
+
+    /// [`OneSided::eval`] around the inner material's evaluation `inner` (so a caller
+    /// that knows the inner material's kind can inline it).
+    #[inline(always)]
+    pub(crate) fn eval_with(wo: Vec3, wi: Vec3, inner: impl FnOnce() -> Vec3) -> Vec3 {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return Vec3::ZERO;
+        }
+        inner()
+    }
+
+    /// [`OneSided::pdf`] around the inner material's density `inner`.
+    #[inline(always)]
+    pub(crate) fn pdf_with(wo: Vec3, wi: Vec3, inner: impl FnOnce() -> f32) -> f32 {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return 0.0;
+        }
+        inner()
+    }
+
+    /// [`OneSided::sample`] around the inner material's sample `inner`.
+    #[inline(always)]
+    pub(crate) fn sample_with(
+        wo: Vec3,
+        inner: impl FnOnce() -> Option<BsdfSample>,
+    ) -> Option<BsdfSample> {
         if wo.z <= 0.0 {
             return None;
         }
-        self.inner
-            .sample_local(uv, wo, u_lobe, u)
-            .filter(|bs| bs.wi.z > 0.0)
+        inner().filter(|bs| bs.wi.z > 0.0)
     }
 }
