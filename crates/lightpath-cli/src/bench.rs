@@ -53,6 +53,23 @@ pub struct BenchArgs {
     /// `rtcIntersect1M`: JSON under `traversal.st.stream`, `traversal.mt.stream`.
     #[arg(long)]
     pub stream: bool,
+    /// Also time the packet queries (16 rays per call, in the rays' file order, through
+    /// the 8-wide BVH with AVX-512 where the processor has it; ray by ray elsewhere), as
+    /// Embree's `rtcIntersect16` traces packets: JSON under `traversal.st.packet`,
+    /// `traversal.mt.packet`.
+    #[arg(long)]
+    pub packet: bool,
+}
+
+/// How a pass hands its rays to the mesh.
+#[derive(Clone, Copy, PartialEq)]
+enum Mode {
+    /// Ray by ray.
+    Single,
+    /// [`STREAM_CHUNK`] rays per call to the stream queries.
+    Stream,
+    /// [`STREAM_CHUNK`] rays per call to the packet queries (16 at a time).
+    Packet,
 }
 
 const SETS: [(&str, bool); 4] = [
@@ -71,25 +88,34 @@ fn median(mut v: Vec<f64>) -> f64 {
 /// `rtcIntersect1M`).
 const STREAM_CHUNK: usize = 256;
 
-/// Milliseconds of one pass over the rays and the number of hits: ray by ray, or with
-/// `stream` in calls of [`STREAM_CHUNK`] rays to the stream queries.
+/// Milliseconds of one pass over the rays and the number of hits: ray by ray, or in
+/// calls of [`STREAM_CHUNK`] rays to the stream or packet queries.
 fn pass(
     mesh: &TriangleMesh,
     rays: &[Ray],
     occluded: bool,
     threads: usize,
-    stream: bool,
+    mode: Mode,
 ) -> (f64, u64) {
     let start = Instant::now();
-    let hits = if stream {
+    let hits = if mode != Mode::Single {
         let chunk = |c: &[Ray]| {
+            let stats = &mut RayStats::default();
             if occluded {
                 let mut h = vec![false; c.len()];
-                mesh.occluded_stream(c, &mut h, &mut RayStats::default());
+                if mode == Mode::Packet {
+                    mesh.occluded_packets(c, &mut h, stats);
+                } else {
+                    mesh.occluded_stream(c, &mut h, stats);
+                }
                 h.iter().filter(|&&x| x).count()
             } else {
                 let mut h = vec![None; c.len()];
-                mesh.intersect_stream(c, &mut h, &mut RayStats::default());
+                if mode == Mode::Packet {
+                    mesh.intersect_packets(c, &mut h, stats);
+                } else {
+                    mesh.intersect_stream(c, &mut h, stats);
+                }
                 h.iter().filter(|x| x.is_some()).count()
             }
         };
@@ -211,16 +237,22 @@ pub fn run(args: BenchArgs) -> Result<()> {
             );
         }
         let mut traversal = serde_json::Map::new();
-        let mut line = vec![String::new(); if args.stream { 4 } else { 2 }];
+        let modes: Vec<Mode> = [
+            (Mode::Single, true),
+            (Mode::Stream, args.stream),
+            (Mode::Packet, args.packet),
+        ]
+        .into_iter()
+        .filter_map(|(m, on)| on.then_some(m))
+        .collect();
+        let mut line = vec![String::new(); 2 * modes.len()];
         for (variant, threads) in [("st", 1usize), ("mt", all)] {
             let mut per_set = serde_json::Map::new();
             let mut stream_sets = serde_json::Map::new();
+            let mut packet_sets = serde_json::Map::new();
             for (set, occluded, rays) in &sets {
-                for stream in [false, true] {
-                    if stream && !args.stream {
-                        continue;
-                    }
-                    let run_pass = || pass(&mesh, rays, *occluded, threads, stream);
+                for (m, &mode) in modes.iter().enumerate() {
+                    let run_pass = || pass(&mesh, rays, *occluded, threads, mode);
                     let (_, hits) = if threads == 1 {
                         single.install(run_pass)
                     } else {
@@ -246,25 +278,27 @@ pub fn run(args: BenchArgs) -> Result<()> {
                         "mrays_per_s_median": mrays,
                         "mrays_per_s_best": rays.len() as f64 / (best * 1e3),
                     });
-                    if threads == 1 && !stream {
+                    if threads == 1 && mode == Mode::Single {
                         // Traversal cost, counted in a separate untimed pass.
                         let (nodes, prims) = cost_per_ray(&mesh, rays, *occluded);
                         let e = entry.as_object_mut().expect("an object");
                         e.insert("nodes_visited_per_ray".into(), json!(nodes));
                         e.insert("prims_tested_per_ray".into(), json!(prims));
                     }
-                    if stream {
-                        stream_sets.insert(set.to_string(), entry);
-                    } else {
-                        per_set.insert(set.to_string(), entry);
-                    }
-                    line[usize::from(threads != 1) + 2 * usize::from(stream)] +=
-                        &format!(" {mrays:>8.2}");
+                    match mode {
+                        Mode::Single => per_set.insert(set.to_string(), entry),
+                        Mode::Stream => stream_sets.insert(set.to_string(), entry),
+                        Mode::Packet => packet_sets.insert(set.to_string(), entry),
+                    };
+                    line[usize::from(threads != 1) + 2 * m] += &format!(" {mrays:>8.2}");
                 }
             }
             per_set.insert("threads".into(), json!(threads));
             if args.stream {
                 per_set.insert("stream".into(), Value::Object(stream_sets));
+            }
+            if args.packet {
+                per_set.insert("packet".into(), Value::Object(packet_sets));
             }
             traversal.insert(variant.into(), Value::Object(per_set));
         }
@@ -282,8 +316,19 @@ pub fn run(args: BenchArgs) -> Result<()> {
             sah,
             line[1]
         );
-        if args.stream {
-            println!("{:>41}|{}\n{:<41}|{}", "stream", line[2], "", line[3]);
+        for (m, mode) in modes.iter().enumerate().skip(1) {
+            let label = if *mode == Mode::Stream {
+                "stream"
+            } else {
+                "packet"
+            };
+            println!(
+                "{:>41}|{}\n{:<41}|{}",
+                label,
+                line[2 * m],
+                "",
+                line[2 * m + 1]
+            );
         }
         report.insert(
             name.clone(),

@@ -406,7 +406,7 @@ fn bench_command_times_ray_sets() {
     let out = lightpath(
         &[
             "bench", "m.obj", "--rays", ".", "--accel", "list", "--accel", "bvh2", "--accel",
-            "bvh4", "--accel", "bvh8", "--reps", "2", "--stream", "--json", "b.json",
+            "bvh4", "--accel", "bvh8", "--reps", "2", "--stream", "--packet", "--json", "b.json",
         ],
         &dir,
     );
@@ -434,11 +434,13 @@ fn bench_command_times_ray_sets() {
                         .is_some_and(|m| m > 0.0)
                 );
                 assert_eq!(hits(accel, v, set), hits("list", "st", set));
-                let stream = &json["accels"][accel]["traversal"][v]["stream"][set];
-                assert!(stream["mrays_per_s_median"]
-                    .as_f64()
-                    .is_some_and(|m| m > 0.0));
-                assert_eq!(stream["hits"].as_u64(), Some(hits("list", "st", set)));
+                for mode in ["stream", "packet"] {
+                    let entry = &json["accels"][accel]["traversal"][v][mode][set];
+                    assert!(entry["mrays_per_s_median"]
+                        .as_f64()
+                        .is_some_and(|m| m > 0.0));
+                    assert_eq!(entry["hits"].as_u64(), Some(hits("list", "st", set)));
+                }
             }
         }
     }

@@ -70,7 +70,8 @@ const EMPTY_NODE: Bvh8Node = Bvh8Node {
 };
 
 /// Widening of the far slab distance (as in the binary BVH, pbrt's `1 + 2γ(3)`).
-const ROBUST_FAR: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
+pub(super) const ROBUST_FAR: f32 =
+    1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
 
 /// Stack depth: each level pushes at most seven siblings.
 const STACK_SIZE: usize = 7 * 128 + 8;
@@ -268,7 +269,7 @@ pub struct Bvh8 {
     prim_order: Vec<u32>,
     bounds: Bounds3,
     /// The root slot: an inner node (count 0) or, for tiny inputs, a leaf.
-    root: (u32, u32),
+    pub(super) root: (u32, u32),
     /// Whether the processor has AVX2 (detected at build).
     avx2: bool,
     pub build_seconds: f64,

@@ -9,6 +9,8 @@
 pub mod bsp;
 pub mod bvh;
 mod bvh8;
+#[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+mod bvh8_packet;
 mod bvh_build;
 mod collapse;
 mod cover;
@@ -24,6 +26,8 @@ mod wide_bvh;
 pub use bsp::{Bsp, BspNode};
 pub use bvh::{Bvh, BvhNode, BvhStats};
 pub use bvh8::{Bvh8, Bvh8Node, STREAM_GROUP};
+#[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+pub use bvh8_packet::{PacketLanes, PACKET};
 pub use grid::Grid;
 pub use kdtree::{KdNode, KdTree};
 pub use list::ListAccel;

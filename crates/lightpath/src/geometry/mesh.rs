@@ -11,6 +11,8 @@
 //! </instance>
 //! ```
 
+#[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+use super::packet::{self, PacketHits, RayPacket, PACKET};
 #[cfg(target_arch = "x86_64")]
 use super::triangle_block::intersect_pair;
 use super::triangle_block::{nearest_lane, TriangleBlock, BLOCK};
@@ -618,6 +620,146 @@ impl TriangleMesh {
         );
     }
 
+    /// Closest hits of many rays (`hits[i]` for `rays[i]`) in packets of sixteen
+    /// through the 8-wide BVH where the processor has AVX-512
+    /// ([`crate::accel::Bvh8::intersect_packet`]); elsewhere, and for other
+    /// accelerators, ray by ray. The same distances as [`TriangleMesh::intersect`]; where
+    /// two triangles are hit at exactly the same distance, either may be reported.
+    pub fn intersect_packets(
+        &self,
+        rays: &[Ray],
+        hits: &mut [Option<ShapeHit>],
+        stats: &mut RayStats,
+    ) {
+        assert_eq!(rays.len(), hits.len(), "one hit per ray");
+        #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+        if let (Accel::Bvh8(bvh), Some(order), true) = (
+            &self.accel,
+            self.accel.leaf_order(),
+            crate::accel::Bvh8::packets_supported(),
+        ) {
+            for (rays, hits) in rays.chunks(PACKET).zip(hits.chunks_mut(PACKET)) {
+                // SAFETY: the processor supports AVX-512F (checked above).
+                unsafe { self.intersect_packet_avx512(bvh, order, rays, hits, stats) };
+            }
+            return;
+        }
+        for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
+            *hit = self.intersect(ray, stats);
+        }
+    }
+
+    #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn intersect_packet_avx512(
+        &self,
+        bvh: &crate::accel::Bvh8,
+        order: &[u32],
+        rays: &[Ray],
+        hits: &mut [Option<ShapeHit>],
+        stats: &mut RayStats,
+    ) {
+        // SAFETY: the caller guarantees AVX-512F.
+        let (packet, mut t_max) = unsafe { RayPacket::new(rays) };
+        let mut found = PacketHits::default();
+        // SAFETY: the caller guarantees AVX-512F.
+        let hit = unsafe {
+            bvh.intersect_packet(
+                &packet.boxes,
+                &mut t_max,
+                stats,
+                |t_max, first, count, mask| {
+                    let mut any = 0;
+                    let end = (first + count).div_ceil(BLOCK as u32) as usize;
+                    for b in first as usize / BLOCK..end {
+                        any |= packet::intersect_block::<false>(
+                            &self.blocks[b],
+                            b,
+                            &packet,
+                            t_max,
+                            mask,
+                            &mut found,
+                        );
+                    }
+                    any
+                },
+            )
+        };
+        stats.rays += rays.len() as u32;
+        for (i, h) in hits.iter_mut().enumerate() {
+            *h = (hit & (1 << i) != 0).then(|| ShapeHit {
+                t: t_max[i],
+                prim: order[found.at[i] as usize],
+                uv: Vec2::new(found.b1[i], found.b2[i]),
+            });
+        }
+    }
+
+    /// Any hits of many rays (`occluded[i]` for `rays[i]`) in packets of sixteen where
+    /// the processor has AVX-512 (see [`TriangleMesh::intersect_packets`]); the same
+    /// answers as [`TriangleMesh::occluded`].
+    pub fn occluded_packets(&self, rays: &[Ray], occluded: &mut [bool], stats: &mut RayStats) {
+        assert_eq!(rays.len(), occluded.len(), "one answer per ray");
+        #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+        if let (Accel::Bvh8(bvh), false, true) = (
+            &self.accel,
+            self.blocks.is_empty(),
+            crate::accel::Bvh8::packets_supported(),
+        ) {
+            for (rays, occluded) in rays.chunks(PACKET).zip(occluded.chunks_mut(PACKET)) {
+                // SAFETY: the processor supports AVX-512F (checked above).
+                let hit = unsafe { self.occluded_packet_avx512(bvh, rays, stats) };
+                for (i, o) in occluded.iter_mut().enumerate() {
+                    *o = hit & (1 << i) != 0;
+                }
+            }
+            return;
+        }
+        for (ray, o) in rays.iter().zip(occluded.iter_mut()) {
+            *o = self.occluded(ray, stats);
+        }
+    }
+
+    #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn occluded_packet_avx512(
+        &self,
+        bvh: &crate::accel::Bvh8,
+        rays: &[Ray],
+        stats: &mut RayStats,
+    ) -> u16 {
+        // SAFETY: the caller guarantees AVX-512F.
+        let (packet, mut t_max) = unsafe { RayPacket::new(rays) };
+        let mut found = PacketHits::default();
+        stats.rays += rays.len() as u32;
+        // SAFETY: the caller guarantees AVX-512F.
+        unsafe {
+            bvh.occluded_packet(
+                &packet.boxes,
+                &mut t_max,
+                stats,
+                |t_max, first, count, mask| {
+                    let mut any = 0;
+                    let end = (first + count).div_ceil(BLOCK as u32) as usize;
+                    for b in first as usize / BLOCK..end {
+                        any |= packet::intersect_block::<true>(
+                            &self.blocks[b],
+                            b,
+                            &packet,
+                            t_max,
+                            mask & !any,
+                            &mut found,
+                        );
+                        if any == mask {
+                            break;
+                        }
+                    }
+                    any
+                },
+            )
+        }
+    }
+
     /// Any hit through the mesh's BVH.
     #[inline(always)]
     pub fn occluded(&self, ray: &Ray, stats: &mut RayStats) -> bool {
@@ -895,14 +1037,7 @@ mod tests {
     #[test]
     fn streams_match_ray_by_ray() {
         let tris = crate::accel::testing::random_soup(4000, 12);
-        let soup = MeshData {
-            positions: tris.iter().flatten().copied().collect(),
-            normals: vec![],
-            uvs: vec![],
-            indices: (0..tris.len() as u32)
-                .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
-                .collect(),
-        };
+        let soup = soup_mesh(&tris);
         let rays = crate::accel::testing::rays_for(&tris, 3000, 4);
         for kind in [AccelKind::Bvh8, AccelKind::Bvh4, AccelKind::Bvh2] {
             let mesh = TriangleMesh::new(soup.clone(), false, kind).unwrap();
@@ -947,6 +1082,120 @@ mod tests {
         }
     }
 
+    /// Separate triangles as a mesh.
+    fn soup_mesh(tris: &[[Vec3; 3]]) -> MeshData {
+        MeshData {
+            positions: tris.iter().flatten().copied().collect(),
+            normals: vec![],
+            uvs: vec![],
+            indices: (0..tris.len() as u32)
+                .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+                .collect(),
+        }
+    }
+
+    /// An `n`×`n` grid of squares of side `step` at z = 1, two triangles each.
+    fn grid_mesh(n: u32, step: f32) -> MeshData {
+        let mut grid = MeshData {
+            positions: vec![],
+            normals: vec![],
+            uvs: vec![],
+            indices: vec![],
+        };
+        for y in 0..=n {
+            for x in 0..=n {
+                grid.positions
+                    .push(Vec3::new(x as f32 * step, y as f32 * step, 1.0));
+                if x < n && y < n {
+                    let i = y * (n + 1) + x;
+                    grid.indices.push([i, i + 1, i + n + 2]);
+                    grid.indices.push([i, i + n + 2, i + n + 1]);
+                }
+            }
+        }
+        grid
+    }
+
+    #[test]
+    fn packets_match_ray_by_ray() {
+        let mut rng = Pcg32::new(5, 9);
+        let soup = soup_mesh(&crate::accel::testing::random_soup(3000, 7));
+        // A grid whose vertices and edges rays go through exactly (edge functions of 0:
+        // the scalar fallback), and a closed sphere.
+        let grid = grid_mesh(10, 0.25);
+        let mut sphere = closed_sphere_mesh(3);
+        for p in &mut sphere.positions {
+            *p = *p * 1.2 + Vec3::splat(1.2);
+        }
+        for data in [soup, grid, sphere] {
+            let mut b = crate::math::Bounds3::from_point(data.positions[0]);
+            for &p in &data.positions {
+                b.expand(p);
+            }
+            let mut rays = Vec::new();
+            for i in 0..3001usize {
+                let mut u = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+                let mut o = b.min + (b.max - b.min) * (u() * 1.4 - Vec3::splat(0.2));
+                let mut d = u() - Vec3::splat(0.5);
+                match i % 7 {
+                    // Axis-parallel, and through grid vertices and edges.
+                    0 => d = [Vec3::Z, Vec3::NEG_X, Vec3::Y, Vec3::NEG_Z][i % 4],
+                    1 => {
+                        o = Vec3::new((i % 11) as f32 * 0.25, (i / 11 % 11) as f32 * 0.25, -1.0);
+                        d = Vec3::Z;
+                    }
+                    2 => d = Vec3::new(d.x, 0.0, d.z),
+                    _ => {}
+                }
+                let (t_min, t_max) = match i % 5 {
+                    0 => (0.0, 1.5),
+                    1 => (0.3, f32::INFINITY),
+                    _ => (0.0, f32::INFINITY),
+                };
+                rays.push(Ray::with_range(o, d, t_min, t_max));
+            }
+            let mesh = TriangleMesh::new(data.clone(), false, AccelKind::Bvh8).unwrap();
+            let s = &mut RayStats::default();
+            let mut hits = vec![None; rays.len()];
+            let mut occ = vec![false; rays.len()];
+            // In uneven pieces, so that packets are partly filled.
+            for (r, h) in rays.chunks(333).zip(hits.chunks_mut(333)) {
+                mesh.intersect_packets(r, h, s);
+            }
+            for (r, o) in rays.chunks(250).zip(occ.chunks_mut(250)) {
+                mesh.occluded_packets(r, o, s);
+            }
+            let mut found = 0;
+            for (i, ray) in rays.iter().enumerate() {
+                let single = mesh.intersect(ray, s);
+                assert_eq!(mesh.occluded(ray, s), occ[i], "ray {i}: {ray:?}");
+                assert_eq!(single.is_some(), occ[i], "ray {i}");
+                match (single, hits[i]) {
+                    (Some(a), Some(b)) => {
+                        found += 1;
+                        assert_eq!(a.t.to_bits(), b.t.to_bits(), "ray {i}");
+                        // A tie at exactly the same distance may name the other triangle;
+                        // then that triangle alone must be hit there.
+                        let wr = WatertightRay::new(ray);
+                        let (p0, p1, p2) = mesh.vertices(b.prim);
+                        let alone =
+                            intersect_triangle_watertight(&wr, ray.t_min, ray.t_max, p0, p1, p2)
+                                .expect("the reported triangle is hit");
+                        assert_eq!(alone.0.to_bits(), b.t.to_bits(), "ray {i}");
+                        assert_eq!(
+                            [alone.2, alone.3].map(f32::to_bits),
+                            b.uv.to_array().map(f32::to_bits),
+                            "ray {i}"
+                        );
+                    }
+                    (a, b) => assert_eq!(a.is_some(), b.is_some(), "ray {i}"),
+                }
+            }
+            assert!(found > 300, "only {found} hits");
+            assert!(occ.iter().filter(|&&o| !o).count() > 300);
+        }
+    }
+
     #[test]
     fn simd_blocks_match_the_scalar_list() {
         let mut rng = Pcg32::new(21, 4);
@@ -964,23 +1213,7 @@ mod tests {
             }
             soup.indices.push([3 * i, 3 * i + 1, 3 * i + 2]);
         }
-        let mut grid = MeshData {
-            positions: vec![],
-            normals: vec![],
-            uvs: vec![],
-            indices: vec![],
-        };
-        for y in 0..=20u32 {
-            for x in 0..=20u32 {
-                grid.positions
-                    .push(Vec3::new(x as f32 * 0.2, y as f32 * 0.2, 1.0));
-                if x < 20 && y < 20 {
-                    let i = y * 21 + x;
-                    grid.indices.push([i, i + 1, i + 22]);
-                    grid.indices.push([i, i + 22, i + 21]);
-                }
-            }
-        }
+        let grid = grid_mesh(20, 0.2);
         let mut sphere = closed_sphere_mesh(3);
         for p in &mut sphere.positions {
             *p = *p * 1.5 + Vec3::splat(2.0);

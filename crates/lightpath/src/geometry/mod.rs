@@ -8,6 +8,8 @@ mod disk;
 mod interaction;
 mod mesh;
 mod mesh_data;
+#[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+mod packet;
 mod plane;
 mod rectangle;
 mod shape;

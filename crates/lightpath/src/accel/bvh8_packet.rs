@@ -1,0 +1,304 @@
+//! Packets of sixteen rays through the 8-wide BVH (AVX-512, detected at run time): a
+//! node's eight children are tested against all the packet's rays, one child per
+//! 16-lane test, and a child is visited once for every ray that enters it. The leaf
+//! callback gets the mask of the rays to test. This pays where rays are many and the
+//! scene is small (a path tracer's bounces in a room): sixteen rays share each node and
+//! triangle load, and a triangle test costs a sixteenth of a 16-lane test per ray.
+//! Incoherent packets on big meshes visit the union of their rays' nodes, which ray by
+//! ray traversal ([`Bvh8::intersect_leaves`]) avoids.
+//!
+//! Order: the hit children are visited nearest first by the least entry distance over
+//! their rays; an entry popped from the stack keeps only the rays whose closest hit so
+//! far lies beyond that distance. Box tests are conservative as in single-ray traversal
+//! (far planes widened by the same factor); a zero direction component gets a finite
+//! reciprocal of `±f32::MAX`, so a ray in a slab's plane is inside the slab and no lane
+//! computes 0·∞. A packet can enter a box one of its rays alone would not (never the
+//! reverse): the leaf tests decide.
+//!
+//! ```text
+//! lightpath bench bunny.ply --rays rays/ --packet    # time packets against ray by ray
+//! ```
+
+// The AVX-512 intrinsics are newer than the MSRV; the build script enables the code that
+// uses them only with compilers that have them (`lightpath_avx512`).
+#![allow(clippy::incompatible_msrv)]
+
+use super::bvh8::{Bvh8, ROBUST_FAR};
+use super::collapse::EMPTY;
+use super::RayStats;
+use crate::math::Ray;
+use std::mem::MaybeUninit;
+
+/// Rays a packet holds.
+pub const PACKET: usize = 16;
+
+/// Stack depth: each level pushes at most eight children.
+const PACKET_STACK: usize = 8 * 128 + 8;
+
+/// What the box tests need of a packet's rays, lane `i` for ray `i`; lanes beyond the
+/// packet's rays are never tested.
+#[derive(Debug, Clone)]
+#[repr(C, align(64))]
+pub struct PacketLanes {
+    pub(crate) origin: [[f32; PACKET]; 3],
+    /// Reciprocal directions, finite (see the module docs).
+    pub(crate) inv: [[f32; PACKET]; 3],
+    /// `inv` widened for the far planes.
+    pub(crate) inv_far: [[f32; PACKET]; 3],
+    pub(crate) t_min: [f32; PACKET],
+    /// Lanes that hold a ray.
+    pub active: u16,
+    /// Per axis, the lanes whose direction has no usable reciprocal there (a zero or
+    /// tiny component): their slab test is whether the origin lies in the slab.
+    pub(crate) parallel: [u16; 3],
+}
+
+impl PacketLanes {
+    /// The lanes of up to [`PACKET`] rays.
+    ///
+    /// # Safety
+    /// The processor must support AVX-512F.
+    #[target_feature(enable = "avx512f")]
+    pub unsafe fn new(rays: &[Ray]) -> PacketLanes {
+        use std::arch::x86_64::*;
+        assert!(rays.len() <= PACKET, "at most {PACKET} rays per packet");
+        let mut p = PacketLanes {
+            origin: [[0.0; PACKET]; 3],
+            inv: [[f32::MAX; PACKET]; 3],
+            inv_far: [[f32::MAX; PACKET]; 3],
+            t_min: [0.0; PACKET],
+            active: 0,
+            parallel: [0; 3],
+        };
+        let mut d = [[1.0f32; PACKET]; 3];
+        for (i, ray) in rays.iter().enumerate() {
+            for (a, (o, d)) in p.origin.iter_mut().zip(&mut d).enumerate() {
+                o[i] = ray.origin[a];
+                d[i] = ray.direction[a];
+            }
+            p.t_min[i] = ray.t_min;
+        }
+        p.active = ((1u32 << rays.len()) - 1) as u16;
+        // SAFETY (intrinsics): AVX-512F, as above; 16-lane arrays.
+        unsafe {
+            let one = _mm512_set1_ps(1.0);
+            let max = _mm512_set1_ps(f32::MAX);
+            let widen = _mm512_set1_ps(ROBUST_FAR);
+            for a in 0..3 {
+                let d = _mm512_loadu_ps(d[a].as_ptr());
+                let inv = _mm512_div_ps(one, d);
+                let inv_far = _mm512_mul_ps(inv, widen);
+                // Infinite reciprocals (zero or tiny components) become ±MAX, with d's sign.
+                let finite = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(_mm512_abs_ps(inv_far), max);
+                let signed_max = _mm512_or_ps(_mm512_and_ps(d, _mm512_set1_ps(-0.0)), max);
+                let pick = |v| _mm512_mask_mov_ps(signed_max, finite, v);
+                _mm512_storeu_ps(p.inv[a].as_mut_ptr(), pick(inv));
+                _mm512_storeu_ps(p.inv_far[a].as_mut_ptr(), pick(inv_far));
+                p.parallel[a] = !finite & p.active;
+            }
+        }
+        p
+    }
+}
+
+#[derive(Clone, Copy)]
+struct PacketEntry {
+    child: u32,
+    count: u32,
+    mask: u16,
+    /// The least entry distance over the entry's rays.
+    dist: f32,
+}
+
+impl Bvh8 {
+    /// Whether packet traversal runs here (the processor has AVX-512F).
+    pub fn packets_supported() -> bool {
+        std::arch::is_x86_feature_detected!("avx512f")
+    }
+
+    /// Closest hits of a packet: `leaf(t_max, first, count, mask)` tests the leaf at
+    /// positions `first..first + count` against the rays of `mask`, lowers their
+    /// `t_max` lanes for hits, and returns the rays it hit. Returns the rays with a hit.
+    ///
+    /// # Safety
+    /// The processor must support AVX-512F ([`Bvh8::packets_supported`]).
+    #[target_feature(enable = "avx512f")]
+    pub unsafe fn intersect_packet<F>(
+        &self,
+        lanes: &PacketLanes,
+        t_max: &mut [f32; PACKET],
+        stats: &mut RayStats,
+        leaf: F,
+    ) -> u16
+    where
+        F: FnMut(&mut [f32; PACKET], u32, u32, u16) -> u16,
+    {
+        // SAFETY: the caller guarantees AVX-512F.
+        unsafe {
+            if lanes.parallel == [0; 3] {
+                self.packet_impl::<false, false, F>(lanes, t_max, stats, leaf)
+            } else {
+                self.packet_impl::<false, true, F>(lanes, t_max, stats, leaf)
+            }
+        }
+    }
+
+    /// Any hits of a packet: as [`Bvh8::intersect_packet`], but a ray is done at its
+    /// first hit (the leaf callback's returned rays), and the traversal ends when all
+    /// are. Returns the rays that hit something.
+    ///
+    /// # Safety
+    /// The processor must support AVX-512F ([`Bvh8::packets_supported`]).
+    #[target_feature(enable = "avx512f")]
+    pub unsafe fn occluded_packet<F>(
+        &self,
+        lanes: &PacketLanes,
+        t_max: &mut [f32; PACKET],
+        stats: &mut RayStats,
+        leaf: F,
+    ) -> u16
+    where
+        F: FnMut(&mut [f32; PACKET], u32, u32, u16) -> u16,
+    {
+        // SAFETY: the caller guarantees AVX-512F.
+        unsafe {
+            if lanes.parallel == [0; 3] {
+                self.packet_impl::<true, false, F>(lanes, t_max, stats, leaf)
+            } else {
+                self.packet_impl::<true, true, F>(lanes, t_max, stats, leaf)
+            }
+        }
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn packet_impl<const ANY_HIT: bool, const PARALLEL: bool, F>(
+        &self,
+        lanes: &PacketLanes,
+        t_max: &mut [f32; PACKET],
+        stats: &mut RayStats,
+        mut leaf: F,
+    ) -> u16
+    where
+        F: FnMut(&mut [f32; PACKET], u32, u32, u16) -> u16,
+    {
+        use std::arch::x86_64::*;
+        let mut stack = [const { MaybeUninit::<PacketEntry>::uninit() }; PACKET_STACK];
+        let mut sp = 0usize;
+        let mut live = lanes.active;
+        let mut found = 0u16;
+        if live == 0 {
+            return 0;
+        }
+        stack[0].write(PacketEntry {
+            child: self.root.0,
+            count: self.root.1,
+            mask: live,
+            dist: f32::NEG_INFINITY,
+        });
+        sp += 1;
+        let (mut visited, mut tested) = (0u32, 0u32);
+        // SAFETY (all intrinsics): the caller guarantees AVX-512F; the loads read the
+        // packet's 16-lane arrays.
+        unsafe {
+            let ld = |a: &[f32; PACKET]| _mm512_loadu_ps(a.as_ptr());
+            let o = [
+                ld(&lanes.origin[0]),
+                ld(&lanes.origin[1]),
+                ld(&lanes.origin[2]),
+            ];
+            let inv = [ld(&lanes.inv[0]), ld(&lanes.inv[1]), ld(&lanes.inv[2])];
+            let inv_far = [
+                ld(&lanes.inv_far[0]),
+                ld(&lanes.inv_far[1]),
+                ld(&lanes.inv_far[2]),
+            ];
+            let t_min = ld(&lanes.t_min);
+            let widen = _mm512_set1_ps(ROBUST_FAR);
+            while sp > 0 {
+                sp -= 1;
+                // SAFETY: every entry below the old `sp` was written.
+                let e = stack[sp].assume_init();
+                let tm = ld(t_max);
+                // Rays still looking whose closest hit so far lies beyond the entry.
+                let mask =
+                    e.mask & live & _mm512_cmp_ps_mask::<_CMP_GE_OQ>(tm, _mm512_set1_ps(e.dist));
+                if mask == 0 {
+                    continue;
+                }
+                visited += 1;
+                if e.count > 0 {
+                    tested += e.count;
+                    let hit = leaf(t_max, e.child, e.count, mask);
+                    found |= hit;
+                    if ANY_HIT {
+                        live &= !hit;
+                        if live == 0 {
+                            break;
+                        }
+                    }
+                    continue;
+                }
+                let node = &self.nodes[e.child as usize];
+                let far_limit = _mm512_mul_ps(tm, widen);
+                let mut hits = [(0u16, 0f32, 0u32); 8];
+                let mut n = 0;
+                for c in 0..8 {
+                    if node.count[c] == EMPTY {
+                        continue;
+                    }
+                    let mut near = t_min;
+                    let mut far = far_limit;
+                    let mut inside = mask;
+                    for a in 0..3 {
+                        let (lo, hi) = (
+                            _mm512_set1_ps(node.planes[a][c]),
+                            _mm512_set1_ps(node.planes[a + 3][c]),
+                        );
+                        let (lo_o, hi_o) = (_mm512_sub_ps(lo, o[a]), _mm512_sub_ps(hi, o[a]));
+                        let (n0, n1) = (_mm512_mul_ps(lo_o, inv[a]), _mm512_mul_ps(hi_o, inv[a]));
+                        let (f0, f1) = (
+                            _mm512_mul_ps(lo_o, inv_far[a]),
+                            _mm512_mul_ps(hi_o, inv_far[a]),
+                        );
+                        let (n, f) = (_mm512_min_ps(n0, n1), _mm512_max_ps(f0, f1));
+                        if PARALLEL && lanes.parallel[a] != 0 {
+                            // Parallel lanes: no distance limit on this axis, but the
+                            // origin must lie in the slab (its planes included).
+                            let p = lanes.parallel[a];
+                            let in_slab = _mm512_cmp_ps_mask::<_CMP_LE_OQ>(lo, o[a])
+                                & _mm512_cmp_ps_mask::<_CMP_LE_OQ>(o[a], hi);
+                            inside &= !p | in_slab;
+                            near = _mm512_mask_max_ps(near, !p, near, n);
+                            far = _mm512_mask_min_ps(far, !p, far, f);
+                        } else {
+                            near = _mm512_max_ps(near, n);
+                            far = _mm512_min_ps(far, f);
+                        }
+                    }
+                    let m = _mm512_mask_cmp_ps_mask::<_CMP_LE_OQ>(inside, near, far);
+                    if m != 0 {
+                        hits[n] = (m, _mm512_mask_reduce_min_ps(m, near), c as u32);
+                        n += 1;
+                    }
+                }
+                // Push the farthest first, so the nearest is popped next.
+                let hits = &mut hits[..n];
+                hits.sort_unstable_by(|a, b| b.1.total_cmp(&a.1));
+                for &(m, dist, c) in hits.iter() {
+                    let c = c as usize;
+                    stack[sp].write(PacketEntry {
+                        child: node.child[c],
+                        count: node.count[c],
+                        mask: m,
+                        dist,
+                    });
+                    sp += 1;
+                }
+            }
+        }
+        stats.nodes_visited += visited;
+        stats.prims_tested += tested;
+        found
+    }
+}

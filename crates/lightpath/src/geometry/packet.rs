@@ -1,0 +1,318 @@
+//! Sixteen rays tested at once against one triangle at a time: the lanes of an AVX-512
+//! register are rays, not triangles. Each lane runs the same watertight test as
+//! [`intersect_triangle_watertight`] with its own ray's axis permutation and shear, in
+//! the same operations and order (no fused multiply-adds), so a lane's answer equals
+//! the single-ray answer bit for bit; a lane whose edge function is exactly zero takes
+//! the scalar test, as the 4-lane block test does.
+//!
+//! The permutation is one `vpermps` per vertex coordinate: a block's vertex `v` is
+//! loaded as its twelve coordinates `x0..x3 y0..y3 z0..z3`, and lane `i` picks the
+//! coordinate `4·k_i + j` of triangle `j` for its axis `k_i`.
+
+// The AVX-512 intrinsics are newer than the MSRV; the build script compiles this module
+// only with compilers that have them.
+#![allow(clippy::incompatible_msrv)]
+
+use super::mesh::{intersect_triangle_watertight, WatertightRay};
+use super::triangle_block::{TriangleBlock, BLOCK};
+use crate::accel::PacketLanes;
+use crate::math::{gamma, Ray};
+
+pub use crate::accel::PACKET;
+
+/// Per-lane constants of sixteen rays: the watertight permutation and shear, and the
+/// box-test lanes the BVH traversal reads.
+#[derive(Debug, Clone)]
+#[repr(C, align(64))]
+pub struct RayPacket<'a> {
+    /// `4·kx`, `4·ky`, `4·kz` of each lane (indices into a block's vertex row).
+    pub(crate) axis4: [[i32; PACKET]; 3],
+    /// The origin permuted by the lane's axes.
+    pub(crate) origin_permuted: [[f32; PACKET]; 3],
+    pub(crate) shear: [[f32; PACKET]; 3],
+    pub boxes: PacketLanes,
+    /// The rays, for lanes that need the scalar test.
+    pub(crate) rays: &'a [Ray],
+}
+
+impl<'a> RayPacket<'a> {
+    /// The packet of up to [`PACKET`] rays (lane `i` is `rays[i]`), and the lanes'
+    /// initial `t_max`: the constants of [`WatertightRay::new`], lane by lane.
+    ///
+    /// # Safety
+    /// The processor must support AVX-512F.
+    #[target_feature(enable = "avx512f")]
+    pub unsafe fn new(rays: &'a [Ray]) -> (RayPacket<'a>, [f32; PACKET]) {
+        use std::arch::x86_64::*;
+        // SAFETY: the caller guarantees AVX-512F; `PacketLanes::new` checks the count.
+        let boxes = unsafe { PacketLanes::new(rays) };
+        let mut d = [[1.0f32; PACKET]; 3];
+        let mut t_max = [f32::NEG_INFINITY; PACKET];
+        for (i, ray) in rays.iter().enumerate() {
+            for (a, d) in d.iter_mut().enumerate() {
+                d[i] = ray.direction[a];
+            }
+            t_max[i] = ray.t_max;
+        }
+        let mut p = RayPacket {
+            axis4: [[0; PACKET]; 3],
+            origin_permuted: [[0.0; PACKET]; 3],
+            shear: [[0.0; PACKET]; 3],
+            boxes,
+            rays,
+        };
+        // SAFETY (intrinsics): AVX-512F, as above; loads and stores of 16-lane arrays.
+        unsafe {
+            let ld = |a: &[f32; PACKET]| _mm512_loadu_ps(a.as_ptr());
+            let (dx, dy, dz) = (ld(&d[0]), ld(&d[1]), ld(&d[2]));
+            let (ax, ay, az) = (_mm512_abs_ps(dx), _mm512_abs_ps(dy), _mm512_abs_ps(dz));
+            // kz = 0 where |dx| is the largest, else 1 where |dy| > |dz|, else 2 (the
+            // comparisons of `WatertightRay::new`).
+            let z0 =
+                _mm512_cmp_ps_mask::<_CMP_GT_OQ>(ax, ay) & _mm512_cmp_ps_mask::<_CMP_GT_OQ>(ax, az);
+            let z1 = !z0 & _mm512_cmp_ps_mask::<_CMP_GT_OQ>(ay, az);
+            let z2 = !(z0 | z1);
+            let pick = |m0: u16, m1: u16, v: [__m512; 3]| {
+                _mm512_mask_mov_ps(_mm512_mask_mov_ps(v[2], m1, v[1]), m0, v[0])
+            };
+            let pick_i = |m0: u16, m1: u16, v: [i32; 3]| {
+                let s = _mm512_set1_epi32;
+                _mm512_mask_mov_epi32(_mm512_mask_mov_epi32(s(v[2]), m1, s(v[1])), m0, s(v[0]))
+            };
+            // (kx, ky, kz) is (1, 2, 0), (2, 0, 1) or (0, 1, 2).
+            let (x0, x1) = (z2, z0); // kx = 0 where kz = 2, 1 where kz = 0
+            let (y0, y1) = (z1, z2); // ky = 0 where kz = 1, 1 where kz = 2
+            let o = [
+                ld(&p.boxes.origin[0]),
+                ld(&p.boxes.origin[1]),
+                ld(&p.boxes.origin[2]),
+            ];
+            let dv = [dx, dy, dz];
+            let (pdx, pdy, pdz) = (pick(x0, x1, dv), pick(y0, y1, dv), pick(z0, z1, dv));
+            let st = |a: &mut [f32; PACKET], v| _mm512_storeu_ps(a.as_mut_ptr(), v);
+            st(&mut p.origin_permuted[0], pick(x0, x1, o));
+            st(&mut p.origin_permuted[1], pick(y0, y1, o));
+            st(&mut p.origin_permuted[2], pick(z0, z1, o));
+            let neg = |v| _mm512_sub_ps(_mm512_setzero_ps(), v);
+            st(&mut p.shear[0], _mm512_div_ps(neg(pdx), pdz));
+            st(&mut p.shear[1], _mm512_div_ps(neg(pdy), pdz));
+            st(&mut p.shear[2], _mm512_div_ps(_mm512_set1_ps(1.0), pdz));
+            let sti =
+                |a: &mut [i32; PACKET], v| _mm512_storeu_si512(a.as_mut_ptr() as *mut __m512i, v);
+            sti(&mut p.axis4[0], pick_i(x0, x1, [0, 4, 8]));
+            sti(&mut p.axis4[1], pick_i(y0, y1, [0, 4, 8]));
+            sti(&mut p.axis4[2], pick_i(z0, z1, [0, 4, 8]));
+        }
+        (p, t_max)
+    }
+}
+
+/// The closest hit of each lane so far: position in the leaf order and barycentrics.
+#[derive(Debug, Clone)]
+#[repr(C, align(64))]
+pub struct PacketHits {
+    pub at: [u32; PACKET],
+    pub b1: [f32; PACKET],
+    pub b2: [f32; PACKET],
+    /// Lanes with a hit.
+    pub found: u16,
+}
+
+impl Default for PacketHits {
+    fn default() -> Self {
+        PacketHits {
+            at: [0; PACKET],
+            b1: [0.0; PACKET],
+            b2: [0.0; PACKET],
+            found: 0,
+        }
+    }
+}
+
+/// Tests the lanes `mask` of `packet` against the four triangles of block `b` (leaf
+/// positions `4b..4b+4`), lowering `t_max` and recording closer hits in `hits`. With
+/// `ANY_HIT`, lanes that hit are only marked in `hits.found` (their `t_max` is left).
+/// Returns the lanes that hit.
+///
+/// # Safety
+/// The processor must support AVX-512F.
+#[target_feature(enable = "avx512f")]
+pub unsafe fn intersect_block<const ANY_HIT: bool>(
+    block: &TriangleBlock,
+    b: usize,
+    packet: &RayPacket<'_>,
+    t_max_lanes: &mut [f32; PACKET],
+    mask: u16,
+    hits: &mut PacketHits,
+) -> u16 {
+    use std::arch::x86_64::*;
+    // SAFETY (all intrinsics): the caller guarantees AVX-512F; loads stay inside the
+    // block and the packet's arrays (64-byte aligned, 16 lanes each).
+    unsafe {
+        let row = |v: usize| _mm512_maskz_loadu_ps(0x0fff, block.p[v].as_ptr() as *const f32);
+        let (r0, r1, r2) = (row(0), row(1), row(2));
+        let ld = |a: &[f32; PACKET]| _mm512_loadu_ps(a.as_ptr());
+        let ldi = |a: &[i32; PACKET]| _mm512_loadu_si512(a.as_ptr() as *const __m512i);
+        let (kx, ky, kz) = (
+            ldi(&packet.axis4[0]),
+            ldi(&packet.axis4[1]),
+            ldi(&packet.axis4[2]),
+        );
+        let (ox, oy, oz) = (
+            ld(&packet.origin_permuted[0]),
+            ld(&packet.origin_permuted[1]),
+            ld(&packet.origin_permuted[2]),
+        );
+        let (sx, sy, sz) = (
+            ld(&packet.shear[0]),
+            ld(&packet.shear[1]),
+            ld(&packet.shear[2]),
+        );
+        let t_min = ld(&packet.boxes.t_min);
+        let mut t_max = ld(t_max_lanes);
+        let zero = _mm512_setzero_ps();
+        let mut any = 0u16;
+        let hp = hits.at.as_mut_ptr() as *mut __m512i;
+        let (hp1, hp2) = (hits.b1.as_mut_ptr(), hits.b2.as_mut_ptr());
+        let mut at = _mm512_loadu_si512(hp);
+        let (mut hb1, mut hb2) = (_mm512_loadu_ps(hp1), _mm512_loadu_ps(hp2));
+        for j in 0..BLOCK {
+            let jv = _mm512_set1_epi32(j as i32);
+            let (ix, iy, iz) = (
+                _mm512_add_epi32(kx, jv),
+                _mm512_add_epi32(ky, jv),
+                _mm512_add_epi32(kz, jv),
+            );
+            let g = |idx: __m512i, r: __m512| _mm512_permutexvar_ps(idx, r);
+            // Translate to the ray origin, permute and shear (as the block test).
+            let az = _mm512_sub_ps(g(iz, r0), oz);
+            let bz = _mm512_sub_ps(g(iz, r1), oz);
+            let cz = _mm512_sub_ps(g(iz, r2), oz);
+            let ax = _mm512_add_ps(_mm512_sub_ps(g(ix, r0), ox), _mm512_mul_ps(sx, az));
+            let ay = _mm512_add_ps(_mm512_sub_ps(g(iy, r0), oy), _mm512_mul_ps(sy, az));
+            let bx = _mm512_add_ps(_mm512_sub_ps(g(ix, r1), ox), _mm512_mul_ps(sx, bz));
+            let by = _mm512_add_ps(_mm512_sub_ps(g(iy, r1), oy), _mm512_mul_ps(sy, bz));
+            let cx = _mm512_add_ps(_mm512_sub_ps(g(ix, r2), ox), _mm512_mul_ps(sx, cz));
+            let cy = _mm512_add_ps(_mm512_sub_ps(g(iy, r2), oy), _mm512_mul_ps(sy, cz));
+            let e0 = _mm512_sub_ps(_mm512_mul_ps(bx, cy), _mm512_mul_ps(by, cx));
+            let e1 = _mm512_sub_ps(_mm512_mul_ps(cx, ay), _mm512_mul_ps(cy, ax));
+            let e2 = _mm512_sub_ps(_mm512_mul_ps(ax, by), _mm512_mul_ps(ay, bx));
+            let eq = |e| _mm512_mask_cmp_ps_mask::<_CMP_EQ_OQ>(mask, e, zero);
+            let edge_zero = eq(e0) | eq(e1) | eq(e2);
+            let lt = |e| _mm512_cmp_ps_mask::<_CMP_LT_OQ>(e, zero);
+            let gt = |e| _mm512_cmp_ps_mask::<_CMP_GT_OQ>(e, zero);
+            let negative = lt(e0) | lt(e1) | lt(e2);
+            let positive = gt(e0) | gt(e1) | gt(e2);
+            let det = _mm512_add_ps(_mm512_add_ps(e0, e1), e2);
+            let mut valid = mask
+                & !edge_zero
+                & !(negative & positive)
+                & _mm512_cmp_ps_mask::<_CMP_NEQ_UQ>(det, zero);
+            // No early exits: with sixteen unrelated rays the branches would mispredict.
+            let (az, bz, cz) = (
+                _mm512_mul_ps(az, sz),
+                _mm512_mul_ps(bz, sz),
+                _mm512_mul_ps(cz, sz),
+            );
+            let t_scaled = _mm512_add_ps(
+                _mm512_add_ps(_mm512_mul_ps(e0, az), _mm512_mul_ps(e1, bz)),
+                _mm512_mul_ps(e2, cz),
+            );
+            let (lo, hi) = (_mm512_mul_ps(t_min, det), _mm512_mul_ps(t_max, det));
+            let det_negative = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(det, zero);
+            let reject_negative = det_negative
+                & (_mm512_cmp_ps_mask::<_CMP_GE_OQ>(t_scaled, lo)
+                    | _mm512_cmp_ps_mask::<_CMP_LT_OQ>(t_scaled, hi));
+            let reject_positive = !det_negative
+                & (_mm512_cmp_ps_mask::<_CMP_LE_OQ>(t_scaled, lo)
+                    | _mm512_cmp_ps_mask::<_CMP_GT_OQ>(t_scaled, hi));
+            valid &= !(reject_negative | reject_positive);
+            let inv_det = _mm512_div_ps(_mm512_set1_ps(1.0), det);
+            let t = _mm512_mul_ps(t_scaled, inv_det);
+            // Reject t that is not provably positive (as the block test).
+            let abs = |v| _mm512_abs_ps(v);
+            let max3 = |a, b, c| _mm512_max_ps(_mm512_max_ps(abs(a), abs(b)), abs(c));
+            let max_zt = max3(az, bz, cz);
+            let delta_z = _mm512_mul_ps(_mm512_set1_ps(gamma(3)), max_zt);
+            let max_xt = max3(ax, bx, cx);
+            let max_yt = max3(ay, by, cy);
+            let g5 = _mm512_set1_ps(gamma(5));
+            let delta_x = _mm512_mul_ps(g5, _mm512_add_ps(max_xt, max_zt));
+            let delta_y = _mm512_mul_ps(g5, _mm512_add_ps(max_yt, max_zt));
+            let delta_e = _mm512_mul_ps(
+                _mm512_set1_ps(2.0),
+                _mm512_add_ps(
+                    _mm512_add_ps(
+                        _mm512_mul_ps(_mm512_mul_ps(_mm512_set1_ps(gamma(2)), max_xt), max_yt),
+                        _mm512_mul_ps(delta_y, max_xt),
+                    ),
+                    _mm512_mul_ps(delta_x, max_yt),
+                ),
+            );
+            let max_e = max3(e0, e1, e2);
+            let delta_t = _mm512_mul_ps(
+                _mm512_mul_ps(
+                    _mm512_set1_ps(3.0),
+                    _mm512_add_ps(
+                        _mm512_add_ps(
+                            _mm512_mul_ps(_mm512_mul_ps(_mm512_set1_ps(gamma(3)), max_e), max_zt),
+                            _mm512_mul_ps(delta_e, max_zt),
+                        ),
+                        _mm512_mul_ps(delta_z, max_e),
+                    ),
+                ),
+                abs(inv_det),
+            );
+            valid &= _mm512_cmp_ps_mask::<_CMP_GT_OQ>(t, delta_t);
+            any |= valid;
+            if !ANY_HIT {
+                t_max = _mm512_mask_mov_ps(t_max, valid, t);
+                at = _mm512_mask_mov_epi32(at, valid, _mm512_set1_epi32((b * BLOCK + j) as i32));
+                hb1 = _mm512_mask_mov_ps(hb1, valid, _mm512_mul_ps(e1, inv_det));
+                hb2 = _mm512_mask_mov_ps(hb2, valid, _mm512_mul_ps(e2, inv_det));
+            }
+            if edge_zero != 0 {
+                // Exact zeros: the scalar test (double precision there), lane by lane.
+                _mm512_storeu_ps(t_max_lanes.as_mut_ptr(), t_max);
+                _mm512_storeu_si512(hp, at);
+                _mm512_storeu_ps(hp1, hb1);
+                _mm512_storeu_ps(hp2, hb2);
+                let (p0, p1, p2) = block.triangle(j);
+                let mut bits = edge_zero;
+                while bits != 0 {
+                    let i = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    let wr = WatertightRay::new(&packet.rays[i]);
+                    if let Some((t, _, u, v)) = intersect_triangle_watertight(
+                        &wr,
+                        packet.boxes.t_min[i],
+                        t_max_lanes[i],
+                        p0,
+                        p1,
+                        p2,
+                    ) {
+                        any |= 1 << i;
+                        if !ANY_HIT {
+                            t_max_lanes[i] = t;
+                            hits.at[i] = (b * BLOCK + j) as u32;
+                            hits.b1[i] = u;
+                            hits.b2[i] = v;
+                        }
+                    }
+                }
+                t_max = _mm512_loadu_ps(t_max_lanes.as_ptr());
+                at = _mm512_loadu_si512(hp);
+                hb1 = _mm512_loadu_ps(hp1);
+                hb2 = _mm512_loadu_ps(hp2);
+            }
+        }
+        _mm512_storeu_ps(t_max_lanes.as_mut_ptr(), t_max);
+        if !ANY_HIT {
+            _mm512_storeu_si512(hp, at);
+            _mm512_storeu_ps(hp1, hb1);
+            _mm512_storeu_ps(hp2, hb2);
+        }
+        hits.found |= any;
+        any
+    }
+}
