@@ -10,10 +10,11 @@
 //! Order: the hit children are visited nearest first by the least entry distance over
 //! their rays; an entry popped from the stack keeps only the rays whose closest hit so
 //! far lies beyond that distance. Box tests are conservative as in single-ray traversal
-//! (far planes widened by the same factor); a zero direction component gets a finite
-//! reciprocal of `±f32::MAX`, so a ray in a slab's plane is inside the slab and no lane
-//! computes 0·∞. A packet can enter a box one of its rays alone would not (never the
-//! reverse): the leaf tests decide.
+//! (far planes widened by the same factor). A ray with a zero (or tiny) direction
+//! component, whose reciprocal is not finite, is inside a slab of that axis when its
+//! origin lies between the planes or on one (a packet with such rays takes a variant of
+//! the test that checks this; no lane computes 0·∞). A packet can enter a box one of
+//! its rays alone would not (never the reverse): the leaf tests decide.
 //!
 //! ```text
 //! lightpath bench bunny.ply --rays rays/ --packet    # time packets against ray by ray
@@ -41,7 +42,8 @@ const PACKET_STACK: usize = 8 * 128 + 8;
 #[repr(C, align(64))]
 pub struct PacketLanes {
     pub(crate) origin: [[f32; PACKET]; 3],
-    /// Reciprocal directions, finite (see the module docs).
+    /// Reciprocal directions; `±f32::MAX` in the lanes of `parallel`, whose box tests
+    /// do not use them (see the module docs).
     pub(crate) inv: [[f32; PACKET]; 3],
     /// `inv` widened for the far planes.
     pub(crate) inv_far: [[f32; PACKET]; 3],

@@ -638,9 +638,18 @@ impl TriangleMesh {
             self.accel.leaf_order(),
             crate::accel::Bvh8::packets_supported(),
         ) {
+            let (mut t, mut found) = ([0.0; PACKET], PacketHits::default());
             for (rays, hits) in rays.chunks(PACKET).zip(hits.chunks_mut(PACKET)) {
                 // SAFETY: the processor supports AVX-512F (checked above).
-                unsafe { self.intersect_packet_avx512(bvh, order, rays, hits, stats) };
+                let hit =
+                    unsafe { self.packet_avx512::<false>(bvh, rays, stats, &mut t, &mut found) };
+                for (i, h) in hits.iter_mut().enumerate() {
+                    *h = (hit & (1 << i) != 0).then(|| ShapeHit {
+                        t: t[i],
+                        prim: order[found.at[i] as usize],
+                        uv: Vec2::new(found.b1[i], found.b2[i]),
+                    });
+                }
             }
             return;
         }
@@ -649,49 +658,52 @@ impl TriangleMesh {
         }
     }
 
+    /// One packet's traversal (`rays`: at most [`PACKET`]): returns the rays hit and,
+    /// for closest hits, writes their distances to `t` and their hits to `found`.
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
     #[target_feature(enable = "avx512f")]
-    unsafe fn intersect_packet_avx512(
+    unsafe fn packet_avx512<const ANY_HIT: bool>(
         &self,
         bvh: &crate::accel::Bvh8,
-        order: &[u32],
         rays: &[Ray],
-        hits: &mut [Option<ShapeHit>],
         stats: &mut RayStats,
-    ) {
+        t: &mut [f32; PACKET],
+        found: &mut PacketHits,
+    ) -> u16 {
         // SAFETY: the caller guarantees AVX-512F.
-        let (packet, mut t_max) = unsafe { RayPacket::new(rays) };
-        let mut found = PacketHits::default();
-        // SAFETY: the caller guarantees AVX-512F.
-        let hit = unsafe {
-            bvh.intersect_packet(
-                &packet.boxes,
-                &mut t_max,
-                stats,
-                |t_max, first, count, mask| {
-                    let mut any = 0;
-                    let end = (first + count).div_ceil(BLOCK as u32) as usize;
-                    for b in first as usize / BLOCK..end {
-                        any |= packet::intersect_block::<false>(
-                            &self.blocks[b],
-                            b,
-                            &packet,
-                            t_max,
-                            mask,
-                            &mut found,
-                        );
-                    }
-                    any
-                },
-            )
-        };
+        let (packet, t_max) = unsafe { RayPacket::new(rays) };
+        *t = t_max;
         stats.rays += rays.len() as u32;
-        for (i, h) in hits.iter_mut().enumerate() {
-            *h = (hit & (1 << i) != 0).then(|| ShapeHit {
-                t: t_max[i],
-                prim: order[found.at[i] as usize],
-                uv: Vec2::new(found.b1[i], found.b2[i]),
-            });
+        let leaf = |t_max: &mut [f32; PACKET], first: u32, count: u32, mask: u16| {
+            let mut any = 0;
+            let end = (first + count).div_ceil(BLOCK as u32) as usize;
+            for b in first as usize / BLOCK..end {
+                // An any-hit ray is done at its first hit.
+                let lanes = if ANY_HIT { mask & !any } else { mask };
+                // SAFETY: the caller guarantees AVX-512F.
+                any |= unsafe {
+                    packet::intersect_block::<ANY_HIT>(
+                        &self.blocks[b],
+                        b,
+                        &packet,
+                        t_max,
+                        lanes,
+                        found,
+                    )
+                };
+                if ANY_HIT && any == mask {
+                    break;
+                }
+            }
+            any
+        };
+        // SAFETY: the caller guarantees AVX-512F.
+        unsafe {
+            if ANY_HIT {
+                bvh.occluded_packet(&packet.boxes, t, stats, leaf)
+            } else {
+                bvh.intersect_packet(&packet.boxes, t, stats, leaf)
+            }
         }
     }
 
@@ -706,9 +718,11 @@ impl TriangleMesh {
             self.blocks.is_empty(),
             crate::accel::Bvh8::packets_supported(),
         ) {
+            let (mut t, mut found) = ([0.0; PACKET], PacketHits::default());
             for (rays, occluded) in rays.chunks(PACKET).zip(occluded.chunks_mut(PACKET)) {
                 // SAFETY: the processor supports AVX-512F (checked above).
-                let hit = unsafe { self.occluded_packet_avx512(bvh, rays, stats) };
+                let hit =
+                    unsafe { self.packet_avx512::<true>(bvh, rays, stats, &mut t, &mut found) };
                 for (i, o) in occluded.iter_mut().enumerate() {
                     *o = hit & (1 << i) != 0;
                 }
@@ -717,46 +731,6 @@ impl TriangleMesh {
         }
         for (ray, o) in rays.iter().zip(occluded.iter_mut()) {
             *o = self.occluded(ray, stats);
-        }
-    }
-
-    #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
-    #[target_feature(enable = "avx512f")]
-    unsafe fn occluded_packet_avx512(
-        &self,
-        bvh: &crate::accel::Bvh8,
-        rays: &[Ray],
-        stats: &mut RayStats,
-    ) -> u16 {
-        // SAFETY: the caller guarantees AVX-512F.
-        let (packet, mut t_max) = unsafe { RayPacket::new(rays) };
-        let mut found = PacketHits::default();
-        stats.rays += rays.len() as u32;
-        // SAFETY: the caller guarantees AVX-512F.
-        unsafe {
-            bvh.occluded_packet(
-                &packet.boxes,
-                &mut t_max,
-                stats,
-                |t_max, first, count, mask| {
-                    let mut any = 0;
-                    let end = (first + count).div_ceil(BLOCK as u32) as usize;
-                    for b in first as usize / BLOCK..end {
-                        any |= packet::intersect_block::<true>(
-                            &self.blocks[b],
-                            b,
-                            &packet,
-                            t_max,
-                            mask & !any,
-                            &mut found,
-                        );
-                        if any == mask {
-                            break;
-                        }
-                    }
-                    any
-                },
-            )
         }
     }
 

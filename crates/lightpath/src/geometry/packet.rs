@@ -107,15 +107,14 @@ impl<'a> RayPacket<'a> {
     }
 }
 
-/// The closest hit of each lane so far: position in the leaf order and barycentrics.
+/// The closest hit of each lane so far (for the lanes the traversal reports hit):
+/// position in the leaf order and barycentrics.
 #[derive(Debug, Clone)]
 #[repr(C, align(64))]
 pub struct PacketHits {
     pub at: [u32; PACKET],
     pub b1: [f32; PACKET],
     pub b2: [f32; PACKET],
-    /// Lanes with a hit.
-    pub found: u16,
 }
 
 impl Default for PacketHits {
@@ -124,15 +123,13 @@ impl Default for PacketHits {
             at: [0; PACKET],
             b1: [0.0; PACKET],
             b2: [0.0; PACKET],
-            found: 0,
         }
     }
 }
 
 /// Tests the lanes `mask` of `packet` against the four triangles of block `b` (leaf
-/// positions `4b..4b+4`), lowering `t_max` and recording closer hits in `hits`. With
-/// `ANY_HIT`, lanes that hit are only marked in `hits.found` (their `t_max` is left).
-/// Returns the lanes that hit.
+/// positions `4b..4b+4`), lowering `t_max` and recording closer hits in `hits`; with
+/// `ANY_HIT`, neither (any hit ends the ray). Returns the lanes that hit.
 ///
 /// # Safety
 /// The processor must support AVX-512F.
@@ -312,7 +309,6 @@ pub unsafe fn intersect_block<const ANY_HIT: bool>(
             _mm512_storeu_ps(hp1, hb1);
             _mm512_storeu_ps(hp2, hb2);
         }
-        hits.found |= any;
         any
     }
 }
