@@ -59,8 +59,8 @@ impl PacketLanes {
     /// The lanes of up to [`PACKET`] rays.
     ///
     /// # Safety
-    /// The processor must support AVX-512F.
-    #[target_feature(enable = "avx512f")]
+    /// The processor must support AVX-512F and DQ.
+    #[target_feature(enable = "avx512f,avx512dq")]
     pub unsafe fn new(rays: &[Ray]) -> PacketLanes {
         use std::arch::x86_64::*;
         assert!(rays.len() <= PACKET, "at most {PACKET} rays per packet");
@@ -81,7 +81,7 @@ impl PacketLanes {
             p.t_min[i] = ray.t_min;
         }
         p.active = ((1u32 << rays.len()) - 1) as u16;
-        // SAFETY (intrinsics): AVX-512F, as above; 16-lane arrays.
+        // SAFETY (intrinsics): AVX-512F and DQ, as above; 16-lane arrays.
         unsafe {
             let one = _mm512_set1_ps(1.0);
             let max = _mm512_set1_ps(f32::MAX);
@@ -113,9 +113,10 @@ struct PacketEntry {
 }
 
 impl Bvh8 {
-    /// Whether packet traversal runs here (the processor has AVX-512F).
+    /// Whether packet traversal runs here (the processor has AVX-512F and DQ).
     pub fn packets_supported() -> bool {
         std::arch::is_x86_feature_detected!("avx512f")
+            && std::arch::is_x86_feature_detected!("avx512dq")
     }
 
     /// Closest hits of a packet: `leaf(t_max, first, count, mask)` tests the leaf at
@@ -123,8 +124,8 @@ impl Bvh8 {
     /// `t_max` lanes for hits, and returns the rays it hit. Returns the rays with a hit.
     ///
     /// # Safety
-    /// The processor must support AVX-512F ([`Bvh8::packets_supported`]).
-    #[target_feature(enable = "avx512f")]
+    /// The processor must support AVX-512F and DQ ([`Bvh8::packets_supported`]).
+    #[target_feature(enable = "avx512f,avx512dq")]
     pub unsafe fn intersect_packet<F>(
         &self,
         lanes: &PacketLanes,
@@ -135,7 +136,7 @@ impl Bvh8 {
     where
         F: FnMut(&mut [f32; PACKET], u32, u32, u16) -> u16,
     {
-        // SAFETY: the caller guarantees AVX-512F.
+        // SAFETY: the caller guarantees AVX-512F and DQ.
         unsafe {
             if lanes.parallel == [0; 3] {
                 self.packet_impl::<false, false, F>(lanes, t_max, stats, leaf)
@@ -150,8 +151,8 @@ impl Bvh8 {
     /// are. Returns the rays that hit something.
     ///
     /// # Safety
-    /// The processor must support AVX-512F ([`Bvh8::packets_supported`]).
-    #[target_feature(enable = "avx512f")]
+    /// The processor must support AVX-512F and DQ ([`Bvh8::packets_supported`]).
+    #[target_feature(enable = "avx512f,avx512dq")]
     pub unsafe fn occluded_packet<F>(
         &self,
         lanes: &PacketLanes,
@@ -162,7 +163,7 @@ impl Bvh8 {
     where
         F: FnMut(&mut [f32; PACKET], u32, u32, u16) -> u16,
     {
-        // SAFETY: the caller guarantees AVX-512F.
+        // SAFETY: the caller guarantees AVX-512F and DQ.
         unsafe {
             if lanes.parallel == [0; 3] {
                 self.packet_impl::<true, false, F>(lanes, t_max, stats, leaf)
@@ -173,7 +174,7 @@ impl Bvh8 {
     }
 
     #[inline]
-    #[target_feature(enable = "avx512f")]
+    #[target_feature(enable = "avx512f,avx512dq")]
     unsafe fn packet_impl<const ANY_HIT: bool, const PARALLEL: bool, F>(
         &self,
         lanes: &PacketLanes,
@@ -200,7 +201,7 @@ impl Bvh8 {
         });
         sp += 1;
         let (mut visited, mut tested) = (0u32, 0u32);
-        // SAFETY (all intrinsics): the caller guarantees AVX-512F; the loads read the
+        // SAFETY (all intrinsics): the caller guarantees AVX-512F and DQ; the loads read the
         // packet's 16-lane arrays.
         unsafe {
             let ld = |a: &[f32; PACKET]| _mm512_loadu_ps(a.as_ptr());

@@ -640,7 +640,7 @@ impl TriangleMesh {
         ) {
             let (mut t, mut found) = ([0.0; PACKET], PacketHits::default());
             for (rays, hits) in rays.chunks(PACKET).zip(hits.chunks_mut(PACKET)) {
-                // SAFETY: the processor supports AVX-512F (checked above).
+                // SAFETY: the processor supports AVX-512F and DQ (checked above).
                 let hit =
                     unsafe { self.packet_avx512::<false>(bvh, rays, stats, &mut t, &mut found) };
                 for (i, h) in hits.iter_mut().enumerate() {
@@ -661,7 +661,7 @@ impl TriangleMesh {
     /// One packet's traversal (`rays`: at most [`PACKET`]): returns the rays hit and,
     /// for closest hits, writes their distances to `t` and their hits to `found`.
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
-    #[target_feature(enable = "avx512f")]
+    #[target_feature(enable = "avx512f,avx512dq")]
     unsafe fn packet_avx512<const ANY_HIT: bool>(
         &self,
         bvh: &crate::accel::Bvh8,
@@ -670,7 +670,7 @@ impl TriangleMesh {
         t: &mut [f32; PACKET],
         found: &mut PacketHits,
     ) -> u16 {
-        // SAFETY: the caller guarantees AVX-512F.
+        // SAFETY: the caller guarantees AVX-512F and DQ.
         let (packet, t_max) = unsafe { RayPacket::new(rays) };
         *t = t_max;
         stats.rays += rays.len() as u32;
@@ -680,7 +680,7 @@ impl TriangleMesh {
             for b in first as usize / BLOCK..end {
                 // An any-hit ray is done at its first hit.
                 let lanes = if ANY_HIT { mask & !any } else { mask };
-                // SAFETY: the caller guarantees AVX-512F.
+                // SAFETY: the caller guarantees AVX-512F and DQ.
                 any |= unsafe {
                     packet::intersect_block::<ANY_HIT>(
                         &self.blocks[b],
@@ -697,7 +697,7 @@ impl TriangleMesh {
             }
             any
         };
-        // SAFETY: the caller guarantees AVX-512F.
+        // SAFETY: the caller guarantees AVX-512F and DQ.
         unsafe {
             if ANY_HIT {
                 bvh.occluded_packet(&packet.boxes, t, stats, leaf)
@@ -720,7 +720,7 @@ impl TriangleMesh {
         ) {
             let (mut t, mut found) = ([0.0; PACKET], PacketHits::default());
             for (rays, occluded) in rays.chunks(PACKET).zip(occluded.chunks_mut(PACKET)) {
-                // SAFETY: the processor supports AVX-512F (checked above).
+                // SAFETY: the processor supports AVX-512F and DQ (checked above).
                 let hit =
                     unsafe { self.packet_avx512::<true>(bvh, rays, stats, &mut t, &mut found) };
                 for (i, o) in occluded.iter_mut().enumerate() {

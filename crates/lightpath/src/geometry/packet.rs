@@ -40,11 +40,11 @@ impl<'a> RayPacket<'a> {
     /// initial `t_max`: the constants of [`WatertightRay::new`], lane by lane.
     ///
     /// # Safety
-    /// The processor must support AVX-512F.
-    #[target_feature(enable = "avx512f")]
+    /// The processor must support AVX-512F and DQ.
+    #[target_feature(enable = "avx512f,avx512dq")]
     pub unsafe fn new(rays: &'a [Ray]) -> (RayPacket<'a>, [f32; PACKET]) {
         use std::arch::x86_64::*;
-        // SAFETY: the caller guarantees AVX-512F; `PacketLanes::new` checks the count.
+        // SAFETY: the caller guarantees AVX-512F and DQ; `PacketLanes::new` checks the count.
         let boxes = unsafe { PacketLanes::new(rays) };
         let mut d = [[1.0f32; PACKET]; 3];
         let mut t_max = [f32::NEG_INFINITY; PACKET];
@@ -61,7 +61,7 @@ impl<'a> RayPacket<'a> {
             boxes,
             rays,
         };
-        // SAFETY (intrinsics): AVX-512F, as above; loads and stores of 16-lane arrays.
+        // SAFETY (intrinsics): AVX-512F and DQ, as above; loads and stores of 16-lane arrays.
         unsafe {
             let ld = |a: &[f32; PACKET]| _mm512_loadu_ps(a.as_ptr());
             let (dx, dy, dz) = (ld(&d[0]), ld(&d[1]), ld(&d[2]));
@@ -132,8 +132,8 @@ impl Default for PacketHits {
 /// `ANY_HIT`, neither (any hit ends the ray). Returns the lanes that hit.
 ///
 /// # Safety
-/// The processor must support AVX-512F.
-#[target_feature(enable = "avx512f")]
+/// The processor must support AVX-512F and DQ.
+#[target_feature(enable = "avx512f,avx512dq")]
 pub unsafe fn intersect_block<const ANY_HIT: bool>(
     block: &TriangleBlock,
     b: usize,
@@ -143,7 +143,7 @@ pub unsafe fn intersect_block<const ANY_HIT: bool>(
     hits: &mut PacketHits,
 ) -> u16 {
     use std::arch::x86_64::*;
-    // SAFETY (all intrinsics): the caller guarantees AVX-512F; loads stay inside the
+    // SAFETY (all intrinsics): the caller guarantees AVX-512F and DQ; loads stay inside the
     // block and the packet's arrays (64-byte aligned, 16 lanes each).
     unsafe {
         let row = |v: usize| _mm512_maskz_loadu_ps(0x0fff, block.p[v].as_ptr() as *const f32);
@@ -201,10 +201,12 @@ pub unsafe fn intersect_block<const ANY_HIT: bool>(
             let negative = lt(e0) | lt(e1) | lt(e2);
             let positive = gt(e0) | gt(e1) | gt(e2);
             let det = _mm512_add_ps(_mm512_add_ps(e0, e1), e2);
-            let mut valid = mask
-                & !edge_zero
-                & !(negative & positive)
-                & _mm512_cmp_ps_mask::<_CMP_NEQ_UQ>(det, zero);
+            // Masks are chained through masked compares (each ANDs its predecessor).
+            let mut valid = _mm512_mask_cmp_ps_mask::<_CMP_NEQ_UQ>(
+                mask & !edge_zero & !(negative & positive),
+                det,
+                zero,
+            );
             // No early exits: with sixteen unrelated rays the branches would mispredict.
             let (az, bz, cz) = (
                 _mm512_mul_ps(az, sz),
@@ -216,14 +218,15 @@ pub unsafe fn intersect_block<const ANY_HIT: bool>(
                 _mm512_mul_ps(e2, cz),
             );
             let (lo, hi) = (_mm512_mul_ps(t_min, det), _mm512_mul_ps(t_max, det));
-            let det_negative = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(det, zero);
-            let reject_negative = det_negative
-                & (_mm512_cmp_ps_mask::<_CMP_GE_OQ>(t_scaled, lo)
-                    | _mm512_cmp_ps_mask::<_CMP_LT_OQ>(t_scaled, hi));
-            let reject_positive = !det_negative
-                & (_mm512_cmp_ps_mask::<_CMP_LE_OQ>(t_scaled, lo)
-                    | _mm512_cmp_ps_mask::<_CMP_GT_OQ>(t_scaled, hi));
-            valid &= !(reject_negative | reject_positive);
+            // The block test rejects `t_scaled <= lo || t_scaled > hi` for a positive
+            // determinant and `t_scaled >= lo || t_scaled < hi` for a negative one: the
+            // first with all three negated by the determinant's sign bit (exact). The
+            // negated, unordered predicates keep what it keeps (NaN included).
+            let sign = _mm512_and_ps(det, _mm512_set1_ps(-0.0));
+            let flip = |v| _mm512_xor_ps(v, sign);
+            let (ts, lo, hi) = (flip(t_scaled), flip(lo), flip(hi));
+            valid = _mm512_mask_cmp_ps_mask::<_CMP_NLE_UQ>(valid, ts, lo);
+            valid = _mm512_mask_cmp_ps_mask::<_CMP_NGT_UQ>(valid, ts, hi);
             let inv_det = _mm512_div_ps(_mm512_set1_ps(1.0), det);
             let t = _mm512_mul_ps(t_scaled, inv_det);
             // Reject t that is not provably positive (as the block test).
@@ -260,7 +263,7 @@ pub unsafe fn intersect_block<const ANY_HIT: bool>(
                 ),
                 abs(inv_det),
             );
-            valid &= _mm512_cmp_ps_mask::<_CMP_GT_OQ>(t, delta_t);
+            valid = _mm512_mask_cmp_ps_mask::<_CMP_GT_OQ>(valid, t, delta_t);
             any |= valid;
             if !ANY_HIT {
                 t_max = _mm512_mask_mov_ps(t_max, valid, t);
