@@ -500,15 +500,29 @@ impl Bvh8 {
         if self.prim_order.is_empty() {
             return false;
         }
+        self.intersect_leaves_from(ray, self.root, stats, prefetch_leaf, leaf)
+    }
+
+    /// [`Bvh8::intersect_leaves`] in the subtree of slot `start` (an inner node's index
+    /// and count 0, or a leaf) only.
+    #[inline]
+    pub(crate) fn intersect_leaves_from<P: Fn(u32), F: FnMut(u32, u32, &mut f32) -> bool>(
+        &self,
+        ray: &Ray,
+        start: (u32, u32),
+        stats: &mut RayStats,
+        prefetch_leaf: P,
+        leaf: F,
+    ) -> bool {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: AVX2 was detected when the tree was built.
-            return unsafe { self.intersect_avx2(ray, stats, prefetch_leaf, leaf) };
+            return unsafe { self.intersect_avx2(ray, start, stats, prefetch_leaf, leaf) };
         }
         if has_zero_component(ray.direction) {
-            self.intersect_impl::<Portable, true, P, F>(ray, stats, prefetch_leaf, leaf)
+            self.intersect_impl::<Portable, true, P, F>(ray, start, stats, prefetch_leaf, leaf)
         } else {
-            self.intersect_impl::<Portable, false, P, F>(ray, stats, prefetch_leaf, leaf)
+            self.intersect_impl::<Portable, false, P, F>(ray, start, stats, prefetch_leaf, leaf)
         }
     }
 
@@ -517,14 +531,15 @@ impl Bvh8 {
     unsafe fn intersect_avx2<P: Fn(u32), F: FnMut(u32, u32, &mut f32) -> bool>(
         &self,
         ray: &Ray,
+        start: (u32, u32),
         stats: &mut RayStats,
         prefetch_leaf: P,
         leaf: F,
     ) -> bool {
         if has_zero_component(ray.direction) {
-            self.intersect_impl::<Avx2, true, P, F>(ray, stats, prefetch_leaf, leaf)
+            self.intersect_impl::<Avx2, true, P, F>(ray, start, stats, prefetch_leaf, leaf)
         } else {
-            self.intersect_impl::<Avx2, false, P, F>(ray, stats, prefetch_leaf, leaf)
+            self.intersect_impl::<Avx2, false, P, F>(ray, start, stats, prefetch_leaf, leaf)
         }
     }
 
@@ -541,15 +556,28 @@ impl Bvh8 {
         if self.prim_order.is_empty() {
             return false;
         }
+        self.occluded_leaves_from(ray, self.root, stats, prefetch_leaf, blocks)
+    }
+
+    /// [`Bvh8::occluded_leaves`] in the subtree of slot `start` only.
+    #[inline]
+    pub(crate) fn occluded_leaves_from<P: Fn(u32), F: FnMut(u32, u32) -> bool>(
+        &self,
+        ray: &Ray,
+        start: (u32, u32),
+        stats: &mut RayStats,
+        prefetch_leaf: P,
+        blocks: F,
+    ) -> bool {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: AVX2 was detected when the tree was built.
-            return unsafe { self.occluded_avx2(ray, stats, prefetch_leaf, blocks) };
+            return unsafe { self.occluded_avx2(ray, start, stats, prefetch_leaf, blocks) };
         }
         if has_zero_component(ray.direction) {
-            self.occluded_impl::<Portable, true, P, F>(ray, stats, prefetch_leaf, blocks)
+            self.occluded_impl::<Portable, true, P, F>(ray, start, stats, prefetch_leaf, blocks)
         } else {
-            self.occluded_impl::<Portable, false, P, F>(ray, stats, prefetch_leaf, blocks)
+            self.occluded_impl::<Portable, false, P, F>(ray, start, stats, prefetch_leaf, blocks)
         }
     }
 
@@ -558,14 +586,15 @@ impl Bvh8 {
     unsafe fn occluded_avx2<P: Fn(u32), F: FnMut(u32, u32) -> bool>(
         &self,
         ray: &Ray,
+        start: (u32, u32),
         stats: &mut RayStats,
         prefetch_leaf: P,
         blocks: F,
     ) -> bool {
         if has_zero_component(ray.direction) {
-            self.occluded_impl::<Avx2, true, P, F>(ray, stats, prefetch_leaf, blocks)
+            self.occluded_impl::<Avx2, true, P, F>(ray, start, stats, prefetch_leaf, blocks)
         } else {
-            self.occluded_impl::<Avx2, false, P, F>(ray, stats, prefetch_leaf, blocks)
+            self.occluded_impl::<Avx2, false, P, F>(ray, start, stats, prefetch_leaf, blocks)
         }
     }
 
@@ -573,6 +602,7 @@ impl Bvh8 {
     fn intersect_impl<T: NodeTest, const AXIS_PARALLEL: bool, P, F>(
         &self,
         ray: &Ray,
+        start: (u32, u32),
         stats: &mut RayStats,
         prefetch_leaf: P,
         mut leaf: F,
@@ -587,8 +617,8 @@ impl Bvh8 {
         let mut stack = [const { MaybeUninit::<Entry>::uninit() }; STACK_SIZE];
         let mut sp = 0usize;
         let mut cur = Entry {
-            child: self.root.0,
-            count: self.root.1,
+            child: start.0,
+            count: start.1,
             dist: ray.t_min,
         };
         // Counted here and added to `stats` at the end: stores through `stats` in the
@@ -628,6 +658,7 @@ impl Bvh8 {
     fn occluded_impl<T: NodeTest, const AXIS_PARALLEL: bool, P, F>(
         &self,
         ray: &Ray,
+        start: (u32, u32),
         stats: &mut RayStats,
         prefetch_leaf: P,
         mut blocks: F,
@@ -640,8 +671,8 @@ impl Bvh8 {
         let mut stack = [const { MaybeUninit::<Entry>::uninit() }; STACK_SIZE];
         let mut sp = 0usize;
         let mut cur = Entry {
-            child: self.root.0,
-            count: self.root.1,
+            child: start.0,
+            count: start.1,
             dist: 0.0,
         };
         let (mut visited, mut tested) = (0u32, 0u32);

@@ -4,8 +4,11 @@
 //! callback gets the mask of the rays to test. This pays where rays are many and the
 //! scene is small (a path tracer's bounces in a room): sixteen rays share each node and
 //! triangle load, and a triangle test costs a sixteenth of a 16-lane test per ray.
-//! Incoherent packets on big meshes visit the union of their rays' nodes, which ray by
-//! ray traversal ([`Bvh8::intersect_leaves`]) avoids.
+//! Incoherent rays part ways: a subtree that at most [`SINGLE_RAYS`] of the packet's
+//! rays enter is handed back to the caller, which traces those rays through it one by
+//! one ([`Bvh8::intersect_leaves_from`]), so that the packet does not drag sixteen lanes
+//! through nodes where one or two of them are live (Benthin et al.'s hybrid
+//! traversal).
 //!
 //! Order: the hit children are visited nearest first by the least entry distance over
 //! their rays; an entry popped from the stack keeps only the rays whose closest hit so
@@ -32,6 +35,11 @@ use std::mem::MaybeUninit;
 
 /// Rays a packet holds.
 pub const PACKET: usize = 16;
+
+/// A subtree entered by at most this many of a packet's rays is traversed ray by ray
+/// (the leaf callback's `count` 0): below it, a 16-lane node test costs more than the
+/// rays' own 8-lane tests.
+const SINGLE_RAYS: u32 = 6;
 
 /// Stack depth: each level pushes at most eight children.
 const PACKET_STACK: usize = 8 * 128 + 8;
@@ -121,7 +129,10 @@ impl Bvh8 {
 
     /// Closest hits of a packet: `leaf(t_max, first, count, mask)` tests the leaf at
     /// positions `first..first + count` against the rays of `mask`, lowers their
-    /// `t_max` lanes for hits, and returns the rays it hit. Returns the rays with a hit.
+    /// `t_max` lanes for hits, and returns the rays it hit; with `count` 0, `first` is
+    /// an inner node that few rays enter, and the callback traces each ray of `mask`
+    /// through its subtree alone (e.g. with [`Bvh8::intersect_leaves_from`]). Returns
+    /// the rays with a hit.
     ///
     /// # Safety
     /// The processor must support AVX-512F and DQ ([`Bvh8::packets_supported`]).
@@ -229,9 +240,13 @@ impl Bvh8 {
                 if mask == 0 {
                     continue;
                 }
-                visited += 1;
-                if e.count > 0 {
-                    tested += e.count;
+                // A leaf, or a subtree that few rays still enter: the callback traces
+                // those rays through it one by one.
+                if e.count > 0 || mask.count_ones() <= SINGLE_RAYS {
+                    if e.count > 0 {
+                        visited += 1;
+                        tested += e.count;
+                    }
                     let hit = leaf(t_max, e.child, e.count, mask);
                     found |= hit;
                     if ANY_HIT {
@@ -242,6 +257,7 @@ impl Bvh8 {
                     }
                     continue;
                 }
+                visited += 1;
                 let node = &self.nodes[e.child as usize];
                 let far_limit = _mm512_mul_ps(tm, widen);
                 let mut hits = [(0u16, 0f32, 0u32); 8];

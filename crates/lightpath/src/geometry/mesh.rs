@@ -674,7 +674,22 @@ impl TriangleMesh {
         let (packet, t_max) = unsafe { RayPacket::new(rays) };
         *t = t_max;
         stats.rays += rays.len() as u32;
+        let mut single_stats = RayStats::default();
         let leaf = |t_max: &mut [f32; PACKET], first: u32, count: u32, mask: u16| {
+            if count == 0 {
+                // SAFETY: the caller guarantees AVX-512F, which includes AVX2.
+                return unsafe {
+                    self.subtree_ray_by_ray::<ANY_HIT>(
+                        bvh,
+                        rays,
+                        first,
+                        mask,
+                        t_max,
+                        found,
+                        &mut single_stats,
+                    )
+                };
+            }
             let mut any = 0;
             let end = (first + count).div_ceil(BLOCK as u32) as usize;
             for b in first as usize / BLOCK..end {
@@ -698,13 +713,69 @@ impl TriangleMesh {
             any
         };
         // SAFETY: the caller guarantees AVX-512F and DQ.
-        unsafe {
+        let hit = unsafe {
             if ANY_HIT {
                 bvh.occluded_packet(&packet.boxes, t, stats, leaf)
             } else {
                 bvh.intersect_packet(&packet.boxes, t, stats, leaf)
             }
+        };
+        stats.nodes_visited += single_stats.nodes_visited;
+        stats.prims_tested += single_stats.prims_tested;
+        hit
+    }
+
+    /// The rays `mask` of a packet, each alone through the subtree of inner node `node`
+    /// (the packet traversal's slow path, kept out of its leaf loop): as
+    /// [`TriangleMesh::packet_avx512`]'s leaf callback.
+    #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+    #[inline(never)]
+    #[target_feature(enable = "avx2")]
+    #[allow(clippy::too_many_arguments)]
+    unsafe fn subtree_ray_by_ray<const ANY_HIT: bool>(
+        &self,
+        bvh: &crate::accel::Bvh8,
+        rays: &[Ray],
+        node: u32,
+        mask: u16,
+        t_max: &mut [f32; PACKET],
+        found: &mut PacketHits,
+        stats: &mut RayStats,
+    ) -> u16 {
+        let order = self.accel.leaf_order().unwrap_or(&[]);
+        let prefetch = |first| self.prefetch_block(first);
+        let mut any = 0;
+        let mut bits = mask;
+        while bits != 0 {
+            let i = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let ray = Ray {
+                t_max: t_max[i],
+                ..rays[i]
+            };
+            let wr = WatertightRay::new(&ray);
+            let hit = if ANY_HIT {
+                bvh.occluded_leaves_from(&ray, (node, 0), stats, prefetch, |f, c| {
+                    self.leaf_blocks::<true>(&wr, &ray, f, c)
+                })
+            } else {
+                let mut closest = None;
+                bvh.intersect_leaves_from(&ray, (node, 0), stats, prefetch, |f, c, t| {
+                    self.leaf_closest::<true>(&wr, ray.t_min, f, c, t, order, &mut closest)
+                });
+                if let Some((t, at, uv)) = closest {
+                    t_max[i] = t;
+                    found.at[i] = at as u32;
+                    found.b1[i] = uv.x;
+                    found.b2[i] = uv.y;
+                }
+                closest.is_some()
+            };
+            if hit {
+                any |= 1 << i;
+            }
         }
+        any
     }
 
     /// Any hits of many rays (`occluded[i]` for `rays[i]`) in packets of sixteen where
