@@ -201,7 +201,7 @@ impl Bvh8 {
         let mut sp = 0usize;
         let mut live = lanes.active;
         let mut found = 0u16;
-        if live == 0 {
+        if live == 0 || self.prim_order().is_empty() {
             return 0;
         }
         stack[0].write(PacketEntry {
@@ -251,7 +251,7 @@ impl Bvh8 {
                     found |= hit;
                     if ANY_HIT {
                         live &= !hit;
-                        if live == 0 {
+                        if live == 0 || self.prim_order().is_empty() {
                             break;
                         }
                     }

@@ -1239,6 +1239,20 @@ mod tests {
             assert!(found > 300, "only {found} hits");
             assert!(occ.iter().filter(|&&o| !o).count() > 300);
         }
+        // A mesh with nothing to hit answers every ray with a miss.
+        let empty = MeshData {
+            positions: vec![],
+            normals: vec![],
+            uvs: vec![],
+            indices: vec![],
+        };
+        let mesh = TriangleMesh::new(empty, false, AccelKind::Bvh8).unwrap();
+        let rays = vec![Ray::new(Vec3::ZERO, Vec3::Z); 20];
+        let (mut hits, mut occ) = (vec![None; 20], vec![true; 20]);
+        let s = &mut RayStats::default();
+        mesh.intersect_packets(&rays, &mut hits, s);
+        mesh.occluded_packets(&rays, &mut occ, s);
+        assert!(hits.iter().all(Option::is_none) && occ.iter().all(|&o| !o));
     }
 
     #[test]
