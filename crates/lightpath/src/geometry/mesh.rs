@@ -675,6 +675,12 @@ impl TriangleMesh {
         *t = t_max;
         stats.rays += rays.len() as u32;
         let mut single_stats = RayStats::default();
+        // Rays of one octant (camera, shadow and other coherent rays) take the leaf test
+        // with early outs.
+        let coherent = (0..3).all(|a| {
+            let negative = rays.iter().filter(|r| r.direction[a] < 0.0).count();
+            negative == 0 || negative == rays.len()
+        });
         let leaf = |t_max: &mut [f32; PACKET], first: u32, count: u32, mask: u16| {
             if count == 0 {
                 // SAFETY: the caller guarantees AVX-512F, which includes AVX2.
@@ -695,16 +701,18 @@ impl TriangleMesh {
             for b in first as usize / BLOCK..end {
                 // An any-hit ray is done at its first hit.
                 let lanes = if ANY_HIT { mask & !any } else { mask };
+                let block = &self.blocks[b];
                 // SAFETY: the caller guarantees AVX-512F and DQ.
                 any |= unsafe {
-                    packet::intersect_block::<ANY_HIT>(
-                        &self.blocks[b],
-                        b,
-                        &packet,
-                        t_max,
-                        lanes,
-                        found,
-                    )
+                    if coherent {
+                        packet::intersect_block::<ANY_HIT, true>(
+                            block, b, &packet, t_max, lanes, found,
+                        )
+                    } else {
+                        packet::intersect_block::<ANY_HIT, false>(
+                            block, b, &packet, t_max, lanes, found,
+                        )
+                    }
                 };
                 if ANY_HIT && any == mask {
                     break;
@@ -1200,44 +1208,56 @@ mod tests {
                 rays.push(Ray::with_range(o, d, t_min, t_max));
             }
             let mesh = TriangleMesh::new(data.clone(), false, AccelKind::Bvh8).unwrap();
-            let s = &mut RayStats::default();
-            let mut hits = vec![None; rays.len()];
-            let mut occ = vec![false; rays.len()];
-            // In uneven pieces, so that packets are partly filled.
-            for (r, h) in rays.chunks(333).zip(hits.chunks_mut(333)) {
-                mesh.intersect_packets(r, h, s);
-            }
-            for (r, o) in rays.chunks(250).zip(occ.chunks_mut(250)) {
-                mesh.occluded_packets(r, o, s);
-            }
-            let mut found = 0;
-            for (i, ray) in rays.iter().enumerate() {
-                let single = mesh.intersect(ray, s);
-                assert_eq!(mesh.occluded(ray, s), occ[i], "ray {i}: {ray:?}");
-                assert_eq!(single.is_some(), occ[i], "ray {i}");
-                match (single, hits[i]) {
-                    (Some(a), Some(b)) => {
-                        found += 1;
-                        assert_eq!(a.t.to_bits(), b.t.to_bits(), "ray {i}");
-                        // A tie at exactly the same distance may name the other triangle;
-                        // then that triangle alone must be hit there.
-                        let wr = WatertightRay::new(ray);
-                        let (p0, p1, p2) = mesh.vertices(b.prim);
-                        let alone =
-                            intersect_triangle_watertight(&wr, ray.t_min, ray.t_max, p0, p1, p2)
-                                .expect("the reported triangle is hit");
-                        assert_eq!(alone.0.to_bits(), b.t.to_bits(), "ray {i}");
-                        assert_eq!(
-                            [alone.2, alone.3].map(f32::to_bits),
-                            b.uv.to_array().map(f32::to_bits),
-                            "ray {i}"
-                        );
-                    }
-                    (a, b) => assert_eq!(a.is_some(), b.is_some(), "ray {i}"),
+            // Scattered rays, and the same rays turned into one octant (packets of
+            // coherent rays take the leaf test with early outs).
+            let one_octant: Vec<Ray> = rays
+                .iter()
+                .map(|r| Ray {
+                    direction: r.direction.abs(),
+                    ..*r
+                })
+                .collect();
+            for rays in [rays.clone(), one_octant] {
+                let s = &mut RayStats::default();
+                let mut hits = vec![None; rays.len()];
+                let mut occ = vec![false; rays.len()];
+                // In uneven pieces, so that packets are partly filled.
+                for (r, h) in rays.chunks(333).zip(hits.chunks_mut(333)) {
+                    mesh.intersect_packets(r, h, s);
                 }
+                for (r, o) in rays.chunks(250).zip(occ.chunks_mut(250)) {
+                    mesh.occluded_packets(r, o, s);
+                }
+                let mut found = 0;
+                for (i, ray) in rays.iter().enumerate() {
+                    let single = mesh.intersect(ray, s);
+                    assert_eq!(mesh.occluded(ray, s), occ[i], "ray {i}: {ray:?}");
+                    assert_eq!(single.is_some(), occ[i], "ray {i}");
+                    match (single, hits[i]) {
+                        (Some(a), Some(b)) => {
+                            found += 1;
+                            assert_eq!(a.t.to_bits(), b.t.to_bits(), "ray {i}");
+                            // A tie at exactly the same distance may name the other triangle;
+                            // then that triangle alone must be hit there.
+                            let wr = WatertightRay::new(ray);
+                            let (p0, p1, p2) = mesh.vertices(b.prim);
+                            let alone = intersect_triangle_watertight(
+                                &wr, ray.t_min, ray.t_max, p0, p1, p2,
+                            )
+                            .expect("the reported triangle is hit");
+                            assert_eq!(alone.0.to_bits(), b.t.to_bits(), "ray {i}");
+                            assert_eq!(
+                                [alone.2, alone.3].map(f32::to_bits),
+                                b.uv.to_array().map(f32::to_bits),
+                                "ray {i}"
+                            );
+                        }
+                        (a, b) => assert_eq!(a.is_some(), b.is_some(), "ray {i}"),
+                    }
+                }
+                assert!(found > 300, "only {found} hits");
+                assert!(occ.iter().filter(|&&o| !o).count() > 300);
             }
-            assert!(found > 300, "only {found} hits");
-            assert!(occ.iter().filter(|&&o| !o).count() > 300);
         }
         // A mesh with nothing to hit answers every ray with a miss.
         let empty = MeshData {

@@ -129,12 +129,14 @@ impl Default for PacketHits {
 
 /// Tests the lanes `mask` of `packet` against the four triangles of block `b` (leaf
 /// positions `4b..4b+4`), lowering `t_max` and recording closer hits in `hits`; with
-/// `ANY_HIT`, neither (any hit ends the ray). Returns the lanes that hit.
+/// `ANY_HIT`, neither (any hit ends the ray). Returns the lanes that hit. `COHERENT`
+/// (rays that mostly go the same way, such as a packet of one octant) skips the rest of
+/// a triangle's test when no lane passes its range test; the answers are the same.
 ///
 /// # Safety
 /// The processor must support AVX-512F and DQ.
 #[target_feature(enable = "avx512f,avx512dq")]
-pub unsafe fn intersect_block<const ANY_HIT: bool>(
+pub unsafe fn intersect_block<const ANY_HIT: bool, const COHERENT: bool>(
     block: &TriangleBlock,
     b: usize,
     packet: &RayPacket<'_>,
@@ -227,49 +229,57 @@ pub unsafe fn intersect_block<const ANY_HIT: bool>(
             let (ts, lo, hi) = (flip(t_scaled), flip(lo), flip(hi));
             valid = _mm512_mask_cmp_ps_mask::<_CMP_NLE_UQ>(valid, ts, lo);
             valid = _mm512_mask_cmp_ps_mask::<_CMP_NGT_UQ>(valid, ts, hi);
-            let inv_det = _mm512_div_ps(_mm512_set1_ps(1.0), det);
-            let t = _mm512_mul_ps(t_scaled, inv_det);
-            // Reject t that is not provably positive (as the block test).
-            let abs = |v| _mm512_abs_ps(v);
-            let max3 = |a, b, c| _mm512_max_ps(_mm512_max_ps(abs(a), abs(b)), abs(c));
-            let max_zt = max3(az, bz, cz);
-            let delta_z = _mm512_mul_ps(_mm512_set1_ps(gamma(3)), max_zt);
-            let max_xt = max3(ax, bx, cx);
-            let max_yt = max3(ay, by, cy);
-            let g5 = _mm512_set1_ps(gamma(5));
-            let delta_x = _mm512_mul_ps(g5, _mm512_add_ps(max_xt, max_zt));
-            let delta_y = _mm512_mul_ps(g5, _mm512_add_ps(max_yt, max_zt));
-            let delta_e = _mm512_mul_ps(
-                _mm512_set1_ps(2.0),
-                _mm512_add_ps(
-                    _mm512_add_ps(
-                        _mm512_mul_ps(_mm512_mul_ps(_mm512_set1_ps(gamma(2)), max_xt), max_yt),
-                        _mm512_mul_ps(delta_y, max_xt),
-                    ),
-                    _mm512_mul_ps(delta_x, max_yt),
-                ),
-            );
-            let max_e = max3(e0, e1, e2);
-            let delta_t = _mm512_mul_ps(
-                _mm512_mul_ps(
-                    _mm512_set1_ps(3.0),
+            // Coherent rays pass or fail a triangle together: skipping the rest when none
+            // passed predicts well for them (and mispredicts for scattered rays).
+            if !COHERENT || valid != 0 {
+                let inv_det = _mm512_div_ps(_mm512_set1_ps(1.0), det);
+                let t = _mm512_mul_ps(t_scaled, inv_det);
+                // Reject t that is not provably positive (as the block test).
+                let abs = |v| _mm512_abs_ps(v);
+                let max3 = |a, b, c| _mm512_max_ps(_mm512_max_ps(abs(a), abs(b)), abs(c));
+                let max_zt = max3(az, bz, cz);
+                let delta_z = _mm512_mul_ps(_mm512_set1_ps(gamma(3)), max_zt);
+                let max_xt = max3(ax, bx, cx);
+                let max_yt = max3(ay, by, cy);
+                let g5 = _mm512_set1_ps(gamma(5));
+                let delta_x = _mm512_mul_ps(g5, _mm512_add_ps(max_xt, max_zt));
+                let delta_y = _mm512_mul_ps(g5, _mm512_add_ps(max_yt, max_zt));
+                let delta_e = _mm512_mul_ps(
+                    _mm512_set1_ps(2.0),
                     _mm512_add_ps(
                         _mm512_add_ps(
-                            _mm512_mul_ps(_mm512_mul_ps(_mm512_set1_ps(gamma(3)), max_e), max_zt),
-                            _mm512_mul_ps(delta_e, max_zt),
+                            _mm512_mul_ps(_mm512_mul_ps(_mm512_set1_ps(gamma(2)), max_xt), max_yt),
+                            _mm512_mul_ps(delta_y, max_xt),
                         ),
-                        _mm512_mul_ps(delta_z, max_e),
+                        _mm512_mul_ps(delta_x, max_yt),
                     ),
-                ),
-                abs(inv_det),
-            );
-            valid = _mm512_mask_cmp_ps_mask::<_CMP_GT_OQ>(valid, t, delta_t);
-            any |= valid;
-            if !ANY_HIT {
-                t_max = _mm512_mask_mov_ps(t_max, valid, t);
-                at = _mm512_mask_mov_epi32(at, valid, _mm512_set1_epi32((b * BLOCK + j) as i32));
-                hb1 = _mm512_mask_mov_ps(hb1, valid, _mm512_mul_ps(e1, inv_det));
-                hb2 = _mm512_mask_mov_ps(hb2, valid, _mm512_mul_ps(e2, inv_det));
+                );
+                let max_e = max3(e0, e1, e2);
+                let delta_t = _mm512_mul_ps(
+                    _mm512_mul_ps(
+                        _mm512_set1_ps(3.0),
+                        _mm512_add_ps(
+                            _mm512_add_ps(
+                                _mm512_mul_ps(
+                                    _mm512_mul_ps(_mm512_set1_ps(gamma(3)), max_e),
+                                    max_zt,
+                                ),
+                                _mm512_mul_ps(delta_e, max_zt),
+                            ),
+                            _mm512_mul_ps(delta_z, max_e),
+                        ),
+                    ),
+                    abs(inv_det),
+                );
+                valid = _mm512_mask_cmp_ps_mask::<_CMP_GT_OQ>(valid, t, delta_t);
+                any |= valid;
+                if !ANY_HIT {
+                    t_max = _mm512_mask_mov_ps(t_max, valid, t);
+                    at =
+                        _mm512_mask_mov_epi32(at, valid, _mm512_set1_epi32((b * BLOCK + j) as i32));
+                    hb1 = _mm512_mask_mov_ps(hb1, valid, _mm512_mul_ps(e1, inv_det));
+                    hb2 = _mm512_mask_mov_ps(hb2, valid, _mm512_mul_ps(e2, inv_det));
+                }
             }
             if edge_zero != 0 {
                 // Exact zeros: the scalar test (double precision there), lane by lane.
