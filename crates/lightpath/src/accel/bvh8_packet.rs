@@ -61,6 +61,8 @@ pub struct PacketLanes {
     /// Per axis, the lanes whose direction has no usable reciprocal there (a zero or
     /// tiny component): their slab test is whether the origin lies in the slab.
     pub(crate) parallel: [u16; 3],
+    /// Whether all the rays point into one octant (coherent rays, such as a camera's).
+    pub one_octant: bool,
 }
 
 impl PacketLanes {
@@ -79,6 +81,7 @@ impl PacketLanes {
             t_min: [0.0; PACKET],
             active: 0,
             parallel: [0; 3],
+            one_octant: true,
         };
         let mut d = [[1.0f32; PACKET]; 3];
         for (i, ray) in rays.iter().enumerate() {
@@ -105,6 +108,8 @@ impl PacketLanes {
                 _mm512_storeu_ps(p.inv[a].as_mut_ptr(), pick(inv));
                 _mm512_storeu_ps(p.inv_far[a].as_mut_ptr(), pick(inv_far));
                 p.parallel[a] = !finite & p.active;
+                let negative = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(d, _mm512_setzero_ps()) & p.active;
+                p.one_octant &= negative == 0 || negative == p.active;
             }
         }
         p
@@ -148,13 +153,7 @@ impl Bvh8 {
         F: FnMut(&mut [f32; PACKET], u32, u32, u16) -> u16,
     {
         // SAFETY: the caller guarantees AVX-512F and DQ.
-        unsafe {
-            if lanes.parallel == [0; 3] {
-                self.packet_impl::<false, false, F>(lanes, t_max, stats, leaf)
-            } else {
-                self.packet_impl::<false, true, F>(lanes, t_max, stats, leaf)
-            }
-        }
+        unsafe { self.packet_impl::<false, F>(lanes, t_max, stats, leaf) }
     }
 
     /// Any hits of a packet: as [`Bvh8::intersect_packet`], but a ray is done at its
@@ -175,18 +174,36 @@ impl Bvh8 {
         F: FnMut(&mut [f32; PACKET], u32, u32, u16) -> u16,
     {
         // SAFETY: the caller guarantees AVX-512F and DQ.
+        unsafe { self.packet_impl::<true, F>(lanes, t_max, stats, leaf) }
+    }
+
+    /// The traversal, in the variant for packets with parallel lanes where they have
+    /// any.
+    #[inline]
+    #[target_feature(enable = "avx512f,avx512dq")]
+    unsafe fn packet_impl<const ANY_HIT: bool, F>(
+        &self,
+        lanes: &PacketLanes,
+        t_max: &mut [f32; PACKET],
+        stats: &mut RayStats,
+        leaf: F,
+    ) -> u16
+    where
+        F: FnMut(&mut [f32; PACKET], u32, u32, u16) -> u16,
+    {
+        // SAFETY: the caller guarantees AVX-512F and DQ.
         unsafe {
             if lanes.parallel == [0; 3] {
-                self.packet_impl::<true, false, F>(lanes, t_max, stats, leaf)
+                self.packet_walk::<ANY_HIT, false, F>(lanes, t_max, stats, leaf)
             } else {
-                self.packet_impl::<true, true, F>(lanes, t_max, stats, leaf)
+                self.packet_walk::<ANY_HIT, true, F>(lanes, t_max, stats, leaf)
             }
         }
     }
 
     #[inline]
     #[target_feature(enable = "avx512f,avx512dq")]
-    unsafe fn packet_impl<const ANY_HIT: bool, const PARALLEL: bool, F>(
+    unsafe fn packet_walk<const ANY_HIT: bool, const PARALLEL: bool, F>(
         &self,
         lanes: &PacketLanes,
         t_max: &mut [f32; PACKET],
@@ -251,7 +268,7 @@ impl Bvh8 {
                     found |= hit;
                     if ANY_HIT {
                         live &= !hit;
-                        if live == 0 || self.prim_order().is_empty() {
+                        if live == 0 {
                             break;
                         }
                     }

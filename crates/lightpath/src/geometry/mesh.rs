@@ -633,11 +633,7 @@ impl TriangleMesh {
     ) {
         assert_eq!(rays.len(), hits.len(), "one hit per ray");
         #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
-        if let (Accel::Bvh8(bvh), Some(order), true) = (
-            &self.accel,
-            self.accel.leaf_order(),
-            crate::accel::Bvh8::packets_supported(),
-        ) {
+        if let Some((bvh, order)) = self.packet_bvh() {
             let (mut t, mut found) = ([0.0; PACKET], PacketHits::default());
             for (rays, hits) in rays.chunks(PACKET).zip(hits.chunks_mut(PACKET)) {
                 // SAFETY: the processor supports AVX-512F and DQ (checked above).
@@ -658,6 +654,20 @@ impl TriangleMesh {
         }
     }
 
+    /// The 8-wide BVH and its leaf order where packets run: a `bvh8` mesh on a
+    /// processor with AVX-512F and DQ.
+    #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+    fn packet_bvh(&self) -> Option<(&crate::accel::Bvh8, &[u32])> {
+        match (&self.accel, self.accel.leaf_order()) {
+            (Accel::Bvh8(bvh), Some(order)) if crate::accel::Bvh8::packets_supported() => {
+                // A BVH8 mesh always has its blocks (see `TriangleMesh::new`).
+                debug_assert!(!self.blocks.is_empty() || order.is_empty());
+                Some((bvh, order))
+            }
+            _ => None,
+        }
+    }
+
     /// One packet's traversal (`rays`: at most [`PACKET`]): returns the rays hit and,
     /// for closest hits, writes their distances to `t` and their hits to `found`.
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
@@ -675,12 +685,6 @@ impl TriangleMesh {
         *t = t_max;
         stats.rays += rays.len() as u32;
         let mut single_stats = RayStats::default();
-        // Rays of one octant (camera, shadow and other coherent rays) take the leaf test
-        // with early outs.
-        let coherent = (0..3).all(|a| {
-            let negative = rays.iter().filter(|r| r.direction[a] < 0.0).count();
-            negative == 0 || negative == rays.len()
-        });
         let leaf = |t_max: &mut [f32; PACKET], first: u32, count: u32, mask: u16| {
             if count == 0 {
                 // SAFETY: the caller guarantees AVX-512F, which includes AVX2.
@@ -704,7 +708,9 @@ impl TriangleMesh {
                 let block = &self.blocks[b];
                 // SAFETY: the caller guarantees AVX-512F and DQ.
                 any |= unsafe {
-                    if coherent {
+                    // Rays of one octant (camera, shadow and other coherent rays)
+                    // take the leaf test with early outs.
+                    if packet.boxes.one_octant {
                         packet::intersect_block::<ANY_HIT, true>(
                             block, b, &packet, t_max, lanes, found,
                         )
@@ -792,11 +798,7 @@ impl TriangleMesh {
     pub fn occluded_packets(&self, rays: &[Ray], occluded: &mut [bool], stats: &mut RayStats) {
         assert_eq!(rays.len(), occluded.len(), "one answer per ray");
         #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
-        if let (Accel::Bvh8(bvh), false, true) = (
-            &self.accel,
-            self.blocks.is_empty(),
-            crate::accel::Bvh8::packets_supported(),
-        ) {
+        if let Some((bvh, _)) = self.packet_bvh() {
             let (mut t, mut found) = ([0.0; PACKET], PacketHits::default());
             for (rays, occluded) in rays.chunks(PACKET).zip(occluded.chunks_mut(PACKET)) {
                 // SAFETY: the processor supports AVX-512F and DQ (checked above).
