@@ -4,7 +4,7 @@
 //! The collapse is SAH-optimal ([`plan`]): which descendants of a binary node become the
 //! up-to-`W` slots of its wide node, and which subtrees become leaves, is the choice of
 //! least expected cost under a model of node and leaf tests, found by dynamic
-//! programming over the binary tree. A subtree of at most two blocks of [`LEAF_ALIGN`]
+//! programming over the binary tree. A subtree of at most three blocks of [`LEAF_ALIGN`]
 //! primitives may become one leaf, whose primitives are tested together as SIMD blocks.
 //! Leaves are then moved to positions that
 //! are multiples of [`LEAF_ALIGN`] and padded to a multiple of it by repeating their last
@@ -22,8 +22,8 @@ use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
 /// Leaves start at multiples of this and are padded to it.
 pub const LEAF_ALIGN: usize = 4;
 
-/// A subtree of at most this many primitives (two blocks) may become a leaf.
-const MERGE_LIMIT: usize = 2 * LEAF_ALIGN;
+/// A subtree of at most this many primitives (three blocks) may become a leaf.
+const MERGE_LIMIT: usize = 3 * LEAF_ALIGN;
 
 /// Marks an unused slot.
 pub const EMPTY: u32 = u32::MAX;
@@ -127,13 +127,14 @@ pub fn collapse<const W: usize>(bvh: &Bvh) -> Collapsed<W> {
 }
 
 /// The collapse's cost model: a ray that enters a box pays `COST_NODE` to test a wide
-/// node's children there, or `COST_BLOCK` for each SIMD block of a leaf. The ratio was
-/// measured rather than derived: on both bunnies' four ray sets, block costs from 0.3
-/// to 0.6 beat the greedy collapse this replaced, 0.4 the most evenly; a cheaper block
-/// makes larger leaves and a smaller tree, whose fewer cache misses the single-ray
-/// traversal rewards more than the extra triangle tests cost.
+/// node's children there, or `COST_BLOCK` for each SIMD block of a leaf. The ratio and
+/// [`MERGE_LIMIT`] were measured rather than derived: on both bunnies' four ray sets,
+/// block costs from 0.15 to 0.6 with leaves of up to two, three or four blocks all beat
+/// the greedy collapse this replaced, and 0.2 with three blocks beat the rest by 1–5 %.
+/// A cheap block makes large leaves and a small tree, whose fewer cache misses the
+/// single-ray traversal rewards more than the extra triangle tests cost.
 const COST_NODE: f32 = 1.0;
-const COST_BLOCK: f32 = 0.4;
+const COST_BLOCK: f32 = 0.2;
 
 /// Binary node `s`'s leaf range if it can become a leaf, from its span (see
 /// [`plan`]): a binary leaf, or a subtree of at most [`MERGE_LIMIT`] primitives that are

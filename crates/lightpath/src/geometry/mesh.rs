@@ -85,7 +85,7 @@ pub struct TriangleMesh {
     /// The triangles in the order of the accelerator's leaves, four to a SIMD block,
     /// when the accelerator hands out whole leaves (the wide BVHs); empty otherwise.
     blocks: Vec<TriangleBlock>,
-    /// Whether the processor has AVX2: leaves of two blocks are then tested as 8 lanes.
+    /// Whether the processor has AVX2: a leaf's blocks are then tested two at a time as 8 lanes.
     avx2: bool,
     /// Triangle areas for area sampling, built the first time the mesh emits light.
     area_distribution: std::sync::OnceLock<crate::sampling::Distribution1D>,
