@@ -4,7 +4,7 @@
 //! The collapse is SAH-optimal ([`plan`]): which descendants of a binary node become the
 //! up-to-`W` slots of its wide node, and which subtrees become leaves, is the choice of
 //! least expected cost under a model of node and leaf tests, found by dynamic
-//! programming over the binary tree. A subtree of at most three blocks of [`LEAF_ALIGN`]
+//! programming over the binary tree. A subtree of at most four blocks of [`LEAF_ALIGN`]
 //! primitives may become one leaf, whose primitives are tested together as SIMD blocks.
 //! Leaves are then moved to positions that
 //! are multiples of [`LEAF_ALIGN`] and padded to a multiple of it by repeating their last
@@ -22,8 +22,8 @@ use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
 /// Leaves start at multiples of this and are padded to it.
 pub const LEAF_ALIGN: usize = 4;
 
-/// A subtree of at most this many primitives (three blocks) may become a leaf.
-const MERGE_LIMIT: usize = 3 * LEAF_ALIGN;
+/// A subtree of at most this many primitives (four blocks) may become a leaf.
+const MERGE_LIMIT: usize = 4 * LEAF_ALIGN;
 
 /// Marks an unused slot.
 pub const EMPTY: u32 = u32::MAX;
@@ -127,14 +127,25 @@ pub fn collapse<const W: usize>(bvh: &Bvh) -> Collapsed<W> {
 }
 
 /// The collapse's cost model: a ray that enters a box pays `COST_NODE` to test a wide
-/// node's children there, or `COST_BLOCK` for each SIMD block of a leaf. The ratio and
-/// [`MERGE_LIMIT`] were measured rather than derived: on both bunnies' four ray sets,
-/// block costs from 0.15 to 0.6 with leaves of up to two, three or four blocks all beat
-/// the greedy collapse this replaced, and 0.2 with three blocks beat the rest by 1–5 %.
-/// A cheap block makes large leaves and a small tree, whose fewer cache misses the
-/// single-ray traversal rewards more than the extra triangle tests cost.
+/// node's children there, or, for a leaf, `COST_LEAF` to reach it and `COST_PAIR` for
+/// each pair of its SIMD blocks (which the AVX2 leaf test takes as one 8-lane test; see
+/// [`leaf_cost`]). The constants and [`MERGE_LIMIT`] were measured rather than derived.
+/// On both bunnies' four ray sets, costs per block from 0.15 to 0.6 of a node's, with
+/// leaves of up to two, three or four blocks, all beat the greedy collapse this
+/// replaced ("open the largest child"): cheap leaves make a small tree, whose fewer
+/// cache misses the single-ray traversal rewards more than it pays for the extra
+/// triangle tests. A cost per block lost 1.5 % on a small mesh (the Cornell box), where
+/// nothing misses the cache and a leaf's fixed cost shows; costs per pair plus that fixed
+/// cost kept the bunnies' gains and lost least there.
 const COST_NODE: f32 = 1.0;
-const COST_BLOCK: f32 = 0.2;
+const COST_LEAF: f32 = 0.5;
+const COST_PAIR: f32 = 0.3;
+
+/// The cost of a leaf of `count` primitives per unit of its box's surface area.
+fn leaf_cost(count: u64) -> f32 {
+    let blocks = count.div_ceil(LEAF_ALIGN as u64);
+    COST_LEAF + COST_PAIR * blocks.div_ceil(2) as f32
+}
 
 /// Binary node `s`'s leaf range if it can become a leaf, from its span (see
 /// [`plan`]): a binary leaf, or a subtree of at most [`MERGE_LIMIT`] primitives that are
@@ -179,7 +190,7 @@ fn plan_split(plan: Plan, field: usize) -> usize {
 /// Karras and Laine, "Efficient incoherent ray traversal on GPUs through compressed wide
 /// BVHs", 2017): `C(n, i)`, the least cost of representing subtree `n` by at most `i`
 /// slots of its parent, is the cheaper of `n` itself in one slot (a leaf of
-/// `area · COST_BLOCK · blocks`, when it can be one, or a wide node of
+/// `area · leaf_cost(count)`, when it can be one, or a wide node of
 /// `area · COST_NODE + D(n, W)`) and `D(n, i)`, the least of `C(left, k) + C(right, i − k)`
 /// over `k`. Which slots a node opens, and which subtrees stay leaves, follows from the
 /// costs rather than from a rule such as "open the largest child".
@@ -202,11 +213,10 @@ fn fill_plans<const W: usize>(
 ) -> (u64, [f32; W]) {
     let n = &bvh.nodes[s as usize];
     let area = n.bounds().surface_area();
-    let blocks = |count: u64| count.div_ceil(LEAF_ALIGN as u64) as f32;
     let (span, cost, plan) = if n.is_leaf() {
         let count = u64::from(n.count);
         let span = u64::from(n.left_or_first) << 16 | count.min(0xff) << 8 | count.min(0xff);
-        let leaf = area * COST_BLOCK * blocks(count);
+        let leaf = area * leaf_cost(count);
         (span, [leaf; W], PLAN_LEAF)
     } else {
         let (l, r) = (n.left_or_first, n.left_or_first + 1);
@@ -236,7 +246,7 @@ fn fill_plans<const W: usize>(
         let leaf = match span {
             NOT_A_LEAF => f32::INFINITY,
             x if x >> 8 & 0xff != x & 0xff => f32::INFINITY,
-            x => area * COST_BLOCK * blocks(x & 0xff),
+            x => area * leaf_cost(x & 0xff),
         };
         let mut plan = (split[W - 1].1 as u32) << (3 * (W - 1));
         if leaf <= node {
@@ -545,10 +555,9 @@ mod tests {
 
     /// The cost of a collapsed tree under the collapse's model, summed over its nodes.
     fn wide_cost<const W: usize>(bvh: &Bvh, tree: &Collapsed<W>) -> f64 {
-        let blocks = |count: u32| f64::from(count.div_ceil(LEAF_ALIGN as u32));
         let root_area = f64::from(bvh.nodes[0].bounds().surface_area());
         if tree.nodes.is_empty() {
-            return root_area * f64::from(COST_BLOCK) * blocks(tree.root.1);
+            return root_area * f64::from(leaf_cost(u64::from(tree.root.1)));
         }
         let mut cost = root_area * f64::from(COST_NODE);
         for slot in tree.nodes.iter().flatten().filter(|s| s.count != EMPTY) {
@@ -558,7 +567,7 @@ mod tests {
             };
             let unit = match slot.count {
                 0 => f64::from(COST_NODE),
-                c => f64::from(COST_BLOCK) * blocks(c),
+                c => f64::from(leaf_cost(u64::from(c))),
             };
             cost += f64::from(b.surface_area()) * unit;
         }
@@ -593,9 +602,8 @@ mod tests {
         }
         let n = &bvh.nodes[s as usize];
         let area = f64::from(n.bounds().surface_area());
-        let leaf = as_leaf(bvh, spans, s).map(|(_, count)| {
-            area * f64::from(COST_BLOCK) * f64::from(count.div_ceil(LEAF_ALIGN as u32))
-        });
+        let leaf =
+            as_leaf(bvh, spans, s).map(|(_, count)| area * f64::from(leaf_cost(u64::from(count))));
         let mut best = leaf.unwrap_or(f64::INFINITY);
         if !n.is_leaf() {
             let l = n.left_or_first;
@@ -639,7 +647,7 @@ mod tests {
                 })
                 .fold(f64::INFINITY, f64::min);
             let leaf = as_leaf(bvh, &spans, 0).map_or(f64::INFINITY, |(_, count)| {
-                area * f64::from(COST_BLOCK) * f64::from(count.div_ceil(LEAF_ALIGN as u32))
+                area * f64::from(leaf_cost(u64::from(count)))
             });
             (area * f64::from(COST_NODE) + node).min(leaf)
         };
