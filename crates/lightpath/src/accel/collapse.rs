@@ -297,7 +297,7 @@ impl Tree<'_> {
     }
 
     /// Appends to `out` the binary nodes that take the at most `i` slots planned for
-    /// subtree `s` (`i == W`: `s`'s own wide node).
+    /// subtree `s` in its parent's wide node ([`Tree::wide_node`] reads `s`'s own).
     fn slots<const W: usize>(&self, s: u32, i: usize, out: &mut [u32; W], len: &mut usize) {
         let k = match i {
             1 => 0,
