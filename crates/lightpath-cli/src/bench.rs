@@ -222,6 +222,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
             lightpath::accel::Accel::Bvh(b) => Some(b.stats),
             _ => None,
         };
+        let collapse_cost = mesh.accel.collapse_cost();
         if let Some(path) = &args.heatmap {
             let Some((_, _, rays)) = sets.iter().find(|(set, ..)| *set == "primary") else {
                 bail!(
@@ -303,9 +304,11 @@ pub fn run(args: BenchArgs) -> Result<()> {
             traversal.insert(variant.into(), Value::Object(per_set));
         }
         let build_median = median(build_ms);
-        let sah = bvh_stats.map_or(String::new(), |s| {
-            format!("  SAH cost {:.3}, depth {}", s.sah_cost, s.max_depth)
-        });
+        let sah = match (bvh_stats, collapse_cost) {
+            (Some(s), _) => format!("  SAH cost {:.3}, depth {}", s.sah_cost, s.max_depth),
+            (None, Some(c)) => format!("  collapse cost {c:.3}"),
+            (None, None) => String::new(),
+        };
         println!(
             "{:<11} {:>9.1} {:>9.1} {:>8.2} |{}\n{:<41}|{}",
             name,
@@ -335,7 +338,8 @@ pub fn run(args: BenchArgs) -> Result<()> {
             json!({
                 "build": {"ms_median": build_median, "bvh_bytes": bytes,
                           "bytes_per_tri": bytes as f64 / triangles.max(1) as f64,
-                          "sah_cost": bvh_stats.map(|s| s.sah_cost)},
+                          "sah_cost": bvh_stats.map(|s| s.sah_cost),
+                          "collapse_cost": collapse_cost},
                 "traversal": Value::Object(traversal),
             }),
         );

@@ -422,6 +422,14 @@ fn bench_command_times_ray_sets() {
             .as_u64()
             .unwrap()
     };
+    // The binary tree reports its SAH cost, the wide trees the cost their collapse
+    // minimises.
+    let build = |accel: &str, key: &str| json["accels"][accel]["build"][key].as_f64();
+    assert!(build("bvh2", "sah_cost").is_some_and(|c| c > 0.0));
+    assert!(build("bvh2", "collapse_cost").is_none());
+    for accel in ["bvh4", "bvh8"] {
+        assert!(build(accel, "collapse_cost").is_some_and(|c| c > 0.0));
+    }
     for accel in ["list", "bvh2", "bvh4", "bvh8"] {
         assert!(json["accels"][accel]["build"]["ms_median"]
             .as_f64()

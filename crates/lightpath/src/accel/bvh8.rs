@@ -273,6 +273,9 @@ pub struct Bvh8 {
     /// Whether the processor has AVX2 (detected at build).
     avx2: bool,
     pub build_seconds: f64,
+    /// The collapse's cost of the tree: node tests and leaf tests weighted by the
+    /// surface areas of their boxes, relative to the root's (the `collapse` module).
+    pub collapse_cost: f32,
 }
 
 impl Bvh8 {
@@ -307,6 +310,7 @@ impl Bvh8 {
             root: tree.root,
             avx2: detect_avx2(),
             build_seconds: 0.0,
+            collapse_cost: tree.cost,
         }
     }
 

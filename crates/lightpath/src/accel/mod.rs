@@ -265,6 +265,16 @@ impl Accel {
         }
     }
 
+    /// The cost that the wide BVHs' collapse minimises (node and leaf tests weighted by
+    /// the surface areas of their boxes, relative to the root's); `None` for the rest.
+    pub fn collapse_cost(&self) -> Option<f32> {
+        match self {
+            Accel::Bvh4(a) => Some(a.collapse_cost),
+            Accel::Bvh8(a) => Some(a.collapse_cost),
+            _ => None,
+        }
+    }
+
     /// Seconds the build took (0 for the list, which has no build).
     pub fn build_seconds(&self) -> f64 {
         match self {

@@ -70,6 +70,9 @@ pub struct Bvh4 {
     /// The root slot: an inner node (count 0) or, for tiny inputs, a leaf.
     root: (u32, u32),
     pub build_seconds: f64,
+    /// The collapse's cost of the tree: node tests and leaf tests weighted by the
+    /// surface areas of their boxes, relative to the root's (the `collapse` module).
+    pub collapse_cost: f32,
 }
 
 impl Bvh4 {
@@ -109,6 +112,7 @@ impl Bvh4 {
             bounds: bvh.bounds(),
             root: tree.root,
             build_seconds: 0.0,
+            collapse_cost: tree.cost,
         }
     }
 
