@@ -187,7 +187,11 @@ fn as_leaf(bvh: &Bvh, spans: &[AtomicU64], s: u32) -> Option<(u32, u32)> {
     if n.is_leaf() {
         return Some((n.left_or_first, n.count));
     }
-    let span = spans[s as usize].load(Relaxed);
+    span_range(spans[s as usize].load(Relaxed))
+}
+
+/// The leaf range `(first, count)` a span packs, when its positions are contiguous.
+fn span_range(span: u64) -> Option<(u32, u32)> {
     (span != NOT_A_LEAF && span >> 8 & 0xff == span & 0xff)
         .then_some(((span >> 16) as u32, (span & 0xff) as u32))
 }
@@ -275,11 +279,9 @@ fn fill_plans<const W: usize>(
             }
         }
         let node = area * COST_NODE + split[W - 1].0;
-        let leaf = match span {
-            NOT_A_LEAF => f32::INFINITY,
-            x if x >> 8 & 0xff != x & 0xff => f32::INFINITY,
-            x => area * leaf_cost(x & 0xff),
-        };
+        let leaf = span_range(span).map_or(f32::INFINITY, |(_, count)| {
+            area * leaf_cost(u64::from(count))
+        });
         let mut plan = (split[W - 1].1 as u32) << (3 * (W - 1));
         if leaf <= node {
             plan |= PLAN_LEAF;
