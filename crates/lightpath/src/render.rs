@@ -380,6 +380,11 @@ impl Renderer<'_> {
         sums: &[Vec3],
         abandoned: &AtomicBool,
     ) -> Option<(Vec<Vec3>, RenderStats)> {
+        #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+        if crate::geometry::has_avx512() {
+            // SAFETY: the processor supports AVX-512 F, VL, DQ and BW (checked above).
+            return unsafe { self.render_tile_avx512(x0, y0, job, sums, abandoned) };
+        }
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the processor supports AVX2 (checked on the line above).
@@ -394,6 +399,22 @@ impl Renderer<'_> {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     unsafe fn render_tile_avx2(
+        &self,
+        x0: u32,
+        y0: u32,
+        job: &PassJob,
+        sums: &[Vec3],
+        abandoned: &AtomicBool,
+    ) -> Option<(Vec<Vec3>, RenderStats)> {
+        self.render_tile_body(x0, y0, job, sums, abandoned)
+    }
+
+    /// [`Renderer::render_tile`] compiled for AVX-512 (F, VL, DQ, BW): EVEX code with 32
+    /// vector registers, a few per cent faster; still no FMA, so the image is the same
+    /// bit for bit (see [`crate::geometry::has_avx512`]).
+    #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+    #[target_feature(enable = "avx2,avx512f,avx512vl,avx512dq,avx512bw")]
+    unsafe fn render_tile_avx512(
         &self,
         x0: u32,
         y0: u32,
