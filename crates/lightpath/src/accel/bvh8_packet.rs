@@ -136,7 +136,7 @@ impl Bvh8 {
     /// positions `first..first + count` against the rays of `mask`, lowers their
     /// `t_max` lanes for hits, and returns the rays it hit; with `count` 0, `first` is
     /// an inner node that few rays enter, and the callback traces each ray of `mask`
-    /// through its subtree alone (e.g. with [`Bvh8::intersect_leaves_from`]). Returns
+    /// through its subtree alone (e.g. with `Bvh8::intersect_leaves_from`). Returns
     /// the rays with a hit.
     ///
     /// # Safety
