@@ -119,15 +119,13 @@ impl WatertightRay {
     pub fn new(ray: &Ray) -> Self {
         let d = ray.direction;
         let ad = d.abs();
-        let kz = if ad.x > ad.y && ad.x > ad.z {
-            0
-        } else if ad.y > ad.z {
-            1
-        } else {
-            2
-        };
-        let kx = if kz == 2 { 0 } else { kz + 1 };
-        let ky = if kx == 2 { 0 } else { kx + 1 };
+        // The largest component (x, then y, on ties with z): 0 where x is largest, else
+        // 1 or 2, from the comparisons' bits rather than branches, which incoherent rays'
+        // directions would mispredict.
+        let x_largest = (ad.x > ad.y) & (ad.x > ad.z);
+        let kz = usize::from(!x_largest) * (2 - usize::from(ad.y > ad.z));
+        let kx = kz + 1 - 3 * usize::from(kz == 2);
+        let ky = kz + 2 - 3 * usize::from(kz != 0);
         // Indexing an array, not the vector (whose index is a three-way branch).
         let da = d.to_array();
         let (dx, dy, dz) = (da[kx], da[ky], da[kz]);
