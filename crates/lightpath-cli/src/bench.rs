@@ -5,9 +5,10 @@
 //! threaded and on all threads (ray by ray, each thread takes the next 1,024 rays from a
 //! shared counter, as embree-bench's threads do). `--json FILE` writes embree-bench's key
 //! layout per accelerator (`build.st.ms_median`,
-//! `traversal.st.primary.mrays_per_s_median`, …), so the two outputs compare key by key. The single-threaded entries also carry the mean
-//! nodes visited and primitives tested per ray (`nodes_visited_per_ray`,
-//! `prims_tested_per_ray`), counted in a separate untimed pass.
+//! `traversal.st.primary.mrays_per_s_median`, …), so the two outputs compare key by key.
+//! The single-threaded entries also carry the mean nodes visited and primitives tested per
+//! ray (`nodes_visited_per_ray`, `prims_tested_per_ray`), counted in a separate untimed
+//! pass.
 
 use crate::fsutil;
 use crate::heatmap;
