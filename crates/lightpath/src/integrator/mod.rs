@@ -10,7 +10,7 @@ pub use ambient_occlusion::AmbientOcclusion;
 pub use aov::{first_hit, Aov, AovLayer, AovVariable, FirstHit};
 pub use camera_direction::CameraDirection;
 pub use direct::{power_heuristic, Direct};
-pub use path_tracer::PathTracer;
+pub use path_tracer::{PathState, PathTracer, ShadowQuery};
 
 use crate::accel::RayStats;
 use crate::math::Ray;

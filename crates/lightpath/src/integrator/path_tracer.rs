@@ -16,6 +16,7 @@
 
 use super::power_heuristic;
 use crate::accel::RayStats;
+use crate::geometry::SurfaceInteraction;
 use crate::light::Light;
 use crate::math::Ray;
 use crate::sampling::Sampler;
@@ -44,10 +45,56 @@ impl Default for PathTracer {
 }
 
 /// What the previous vertex knows about how the path continued from it.
+#[derive(Debug, Clone, Copy)]
 struct Previous {
     p: Vec3,
     bsdf_pdf: f32,
     delta: bool,
+}
+
+/// A path between two of its vertices: what [`PathTracer::li`] carries around its loop,
+/// held outside it so that a renderer can advance many paths together and trace their
+/// rays in batches ([`PathTracer::step`]).
+#[derive(Debug, Clone, Copy)]
+pub struct PathState {
+    /// The ray to trace next.
+    pub ray: Ray,
+    /// Radiance so far and throughput, in 4-lane arithmetic (the same operations per
+    /// channel as with `Vec3`, bit for bit).
+    l: Vec3A,
+    beta: Vec3A,
+    prev: Option<Previous>,
+    depth: u32,
+}
+
+impl PathState {
+    /// A path about to trace its camera ray.
+    pub fn new(camera_ray: &Ray) -> Self {
+        PathState {
+            ray: *camera_ray,
+            l: Vec3A::ZERO,
+            beta: Vec3A::ONE,
+            prev: None,
+            depth: 1,
+        }
+    }
+}
+
+/// A vertex's shadow ray (next-event estimation) and the radiance it adds to its path
+/// when nothing blocks it.
+#[derive(Debug, Clone, Copy)]
+pub struct ShadowQuery {
+    pub ray: Ray,
+    contribution: Vec3A,
+}
+
+impl ShadowQuery {
+    /// Adds the light to the path: call when the shadow ray is unoccluded, before the
+    /// path's next [`PathTracer::step`].
+    #[inline(always)]
+    pub fn add_to(&self, path: &mut PathState) {
+        path.l += self.contribution;
+    }
 }
 
 impl PathTracer {
@@ -59,105 +106,140 @@ impl PathTracer {
         sampler: &mut Sampler,
         stats: &mut RayStats,
     ) -> Vec3 {
-        // Radiance and throughput in 4-lane arithmetic (the same operations per channel
-        // as with `Vec3`, bit for bit).
-        let mut l = Vec3A::ZERO;
-        let mut beta = Vec3A::ONE;
-        let mut ray = *camera_ray;
-        let mut prev: Option<Previous> = None;
-        let mut depth = 1u32;
+        let mut path = PathState::new(camera_ray);
         loop {
-            let Some(si) = scene.intersect_with_stats(&ray, stats) else {
-                let dir = ray.direction.normalize();
-                let le = scene.background(dir);
-                if le != Vec3::ZERO {
-                    l += beta * Vec3A::from(le) * self.environment_mis(scene, prev.as_ref(), dir);
-                }
-                break;
-            };
-            // The unit ray direction (the scene sets `wo` to exactly its negation).
-            let dir = -si.wo;
-            let inst = &scene.instances[si.instance as usize];
-            if inst.emission.is_some() {
-                let le = scene.emitted(&si, si.wo);
-                if le != Vec3::ZERO {
-                    let mis = match &prev {
-                        Some(pv) if !pv.delta => {
-                            power_heuristic(pv.bsdf_pdf, scene.emitter_pdf(pv.p, &si, dir))
-                        }
-                        _ => 1.0,
-                    };
-                    l += beta * Vec3A::from(le) * mis;
+            let hit = scene.intersect_with_stats(&path.ray, stats);
+            let mut shadow = None;
+            let more = self.step(scene, &mut path, hit, sampler, &mut shadow);
+            if let Some(q) = shadow {
+                if !scene.occluded_with_stats(&q.ray, stats) {
+                    q.add_to(&mut path);
                 }
             }
-            if depth >= self.max_depth {
-                break;
+            if !more {
+                return self.finish(&path);
             }
-            let Some(material) = scene.material(&si) else {
-                break;
-            };
-            // The shading frame and local wo, shared by the light and BSDF samples.
-            let bsdf = material.bsdf(&si, si.wo);
+        }
+    }
 
-            // Next-event estimation: one light, one shadow ray.
-            // The light and the light's primitive as one 2D sample (stratified together,
-            // and one dimension pair of a low-discrepancy sampler instead of two).
-            let Vec2 {
-                x: u_light,
-                y: u_prim,
-            } = sampler.next_2d();
-            let u_point = sampler.next_2d();
-            if !material.is_delta() {
-                if let Some((index, pick)) = scene.light_sampler.sample(u_light) {
-                    let light = &scene.lights[index];
-                    if let Some(ls) = light.sample(si.p, u_prim, u_point) {
-                        let wi_local = bsdf.to_local(ls.wi);
-                        let f = bsdf.eval_local(wi_local);
-                        if f != Vec3::ZERO && ls.weight != Vec3::ZERO {
-                            let shadow = if ls.distance.is_finite() {
-                                si.spawn_ray_to(si.p + ls.wi * ls.distance)
-                            } else {
-                                si.spawn_ray(ls.wi)
-                            };
-                            if !scene.occluded_with_stats(&shadow, stats) {
-                                let mis = if !light.reachable_by_rays() {
-                                    1.0
-                                } else {
-                                    power_heuristic(pick * ls.pdf, bsdf.pdf_local(wi_local))
-                                };
-                                l += beta * Vec3A::from(f) * Vec3A::from(ls.weight) * (mis / pick);
-                            }
-                        }
+    /// Advances `path` past the hit (or miss) of its ray: adds what the hit emits, sets
+    /// `shadow` to the vertex's shadow ray (whose light the caller adds, when the ray is
+    /// unoccluded, before the next step) and samples the next ray into `path.ray`.
+    /// Returns whether the path goes on; once it does not, [`PathTracer::finish`] gives
+    /// its value. Draws the same samples in the same order as one turn of
+    /// [`PathTracer::li`]'s loop, which is this function between ray queries.
+    #[inline(always)]
+    pub fn step(
+        &self,
+        scene: &Scene,
+        path: &mut PathState,
+        hit: Option<SurfaceInteraction>,
+        sampler: &mut Sampler,
+        shadow: &mut Option<ShadowQuery>,
+    ) -> bool {
+        let beta = path.beta;
+        let Some(si) = hit else {
+            let dir = path.ray.direction.normalize();
+            let le = scene.background(dir);
+            if le != Vec3::ZERO {
+                path.l +=
+                    beta * Vec3A::from(le) * self.environment_mis(scene, path.prev.as_ref(), dir);
+            }
+            return false;
+        };
+        // The unit ray direction (the scene sets `wo` to exactly its negation).
+        let dir = -si.wo;
+        let inst = &scene.instances[si.instance as usize];
+        if inst.emission.is_some() {
+            let le = scene.emitted(&si, si.wo);
+            if le != Vec3::ZERO {
+                let mis = match &path.prev {
+                    Some(pv) if !pv.delta => {
+                        power_heuristic(pv.bsdf_pdf, scene.emitter_pdf(pv.p, &si, dir))
+                    }
+                    _ => 1.0,
+                };
+                path.l += beta * Vec3A::from(le) * mis;
+            }
+        }
+        if path.depth >= self.max_depth {
+            return false;
+        }
+        let Some(material) = scene.material(&si) else {
+            return false;
+        };
+        // The shading frame and local wo, shared by the light and BSDF samples.
+        let bsdf = material.bsdf(&si, si.wo);
+
+        // Next-event estimation: one light, one shadow ray.
+        // The light and the light's primitive as one 2D sample (stratified together,
+        // and one dimension pair of a low-discrepancy sampler instead of two).
+        let Vec2 {
+            x: u_light,
+            y: u_prim,
+        } = sampler.next_2d();
+        let u_point = sampler.next_2d();
+        if !material.is_delta() {
+            if let Some((index, pick)) = scene.light_sampler.sample(u_light) {
+                let light = &scene.lights[index];
+                if let Some(ls) = light.sample(si.p, u_prim, u_point) {
+                    let wi_local = bsdf.to_local(ls.wi);
+                    let f = bsdf.eval_local(wi_local);
+                    if f != Vec3::ZERO && ls.weight != Vec3::ZERO {
+                        let ray = if ls.distance.is_finite() {
+                            si.spawn_ray_to(si.p + ls.wi * ls.distance)
+                        } else {
+                            si.spawn_ray(ls.wi)
+                        };
+                        let mis = if !light.reachable_by_rays() {
+                            1.0
+                        } else {
+                            power_heuristic(pick * ls.pdf, bsdf.pdf_local(wi_local))
+                        };
+                        *shadow = Some(ShadowQuery {
+                            ray,
+                            contribution: beta
+                                * Vec3A::from(f)
+                                * Vec3A::from(ls.weight)
+                                * (mis / pick),
+                        });
                     }
                 }
             }
-
-            // Continue the path by sampling the BSDF.
-            let u_lobe = sampler.next_1d();
-            let u_dir = sampler.next_2d();
-            let Some(bs) = bsdf.sample(u_lobe, u_dir) else {
-                break;
-            };
-            beta *= Vec3A::from(bs.weight);
-            if beta == Vec3A::ZERO || !beta.is_finite() {
-                break;
-            }
-            prev = Some(Previous {
-                p: si.p,
-                bsdf_pdf: bs.pdf,
-                delta: bs.delta,
-            });
-            ray = si.spawn_ray(bs.wi);
-            depth += 1;
-            if depth > self.rr_depth {
-                let q = beta.max_element().min(0.95);
-                if sampler.next_1d() >= q {
-                    break;
-                }
-                beta /= q;
-            }
         }
-        let l = Vec3::from(l);
+
+        // Continue the path by sampling the BSDF.
+        let u_lobe = sampler.next_1d();
+        let u_dir = sampler.next_2d();
+        let Some(bs) = bsdf.sample(u_lobe, u_dir) else {
+            return false;
+        };
+        let mut beta = beta * Vec3A::from(bs.weight);
+        if beta == Vec3A::ZERO || !beta.is_finite() {
+            return false;
+        }
+        path.prev = Some(Previous {
+            p: si.p,
+            bsdf_pdf: bs.pdf,
+            delta: bs.delta,
+        });
+        path.ray = si.spawn_ray(bs.wi);
+        path.depth += 1;
+        if path.depth > self.rr_depth {
+            let q = beta.max_element().min(0.95);
+            if sampler.next_1d() >= q {
+                return false;
+            }
+            beta /= q;
+        }
+        path.beta = beta;
+        true
+    }
+
+    /// The value of a path that has ended (the clamp applied).
+    #[inline(always)]
+    pub fn finish(&self, path: &PathState) -> Vec3 {
+        let l = Vec3::from(path.l);
         match self.clamp {
             Some(c) => l.min(Vec3::splat(c)),
             None => l,
