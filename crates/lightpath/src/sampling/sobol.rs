@@ -6,8 +6,8 @@
 //! decorrelated between pixels and dimensions, and still a pure function of
 //! (pixel, sample index, seed). Sample counts that are powers of two stratify best.
 //!
-//! The sampler computes eight dimensions at a time, each lane of a vector register one
-//! dimension (AVX2, with AVX-512DQ for the 64-bit hashes, where the processor has them);
+//! The sampler computes sixteen dimensions at a time, each lane of a vector register one
+//! dimension (one AVX-512 register, or two AVX2 ones, where the processor has them);
 //! the values are those of the one-dimension-at-a-time definition, bit for bit. The
 //! per-dimension seeds depend only on the pixel, so they are hashed at a pixel's first
 //! sample and kept for its others.
@@ -193,7 +193,7 @@ fn permutation_round(mut i: u32, w: u32, p: u32) -> u32 {
 }
 
 /// Draws computed together: the sampler fills this many dimensions at once.
-const BATCH: usize = 8;
+const BATCH: usize = 16;
 
 /// Where a batch starts: the pixel's hash, the batch's first dimension, the sample index
 /// and the sample count.
@@ -219,7 +219,7 @@ struct BatchSeeds {
 
 /// Batches of seeds a sampler keeps per pixel (at most this many dimensions are drawn
 /// from kept seeds; deeper ones are hashed again at every sample).
-const KEPT_BATCHES: usize = 64;
+const KEPT_BATCHES: usize = 32;
 
 /// The points of dimensions `dim0 .. dim0 + BATCH` of sample `index` (out of `n`) for the
 /// pixel hashed to `pixel_hash`, as x and y coordinates: the same values as the scalar
@@ -345,6 +345,7 @@ impl Lanes {
         {
             if std::arch::is_x86_feature_detected!("avx512dq")
                 && std::arch::is_x86_feature_detected!("avx512vl")
+                && std::arch::is_x86_feature_detected!("avx512bw")
             {
                 return Lanes::Avx512;
             }
@@ -413,12 +414,34 @@ unsafe fn fill_lanes_explicit_avx2(
     xs: &mut [f32; BATCH],
     ys: &mut [f32; BATCH],
 ) {
+    for first in (0..BATCH).step_by(8) {
+        // SAFETY: the caller guarantees AVX2.
+        unsafe { fill_eight_explicit_avx2(index, n, seeds, first, xs, ys) };
+    }
+}
+
+/// Lanes `first .. first + 8` of [`fill_lanes_explicit_avx2`].
+///
+/// # Safety
+/// The processor must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn fill_eight_explicit_avx2(
+    index: u32,
+    n: u32,
+    seeds: &BatchSeeds,
+    first: usize,
+    xs: &mut [f32; BATCH],
+    ys: &mut [f32; BATCH],
+) {
     use std::arch::x86_64::*;
     debug_assert!(index < n && n <= EXPLICIT_MAX_COUNT);
+    debug_assert!(first + 8 <= BATCH);
     let splat = |x: u32| _mm256_set1_epi32(x as i32);
     let load = |a: &[u32; BATCH]| {
-        // SAFETY: `a` holds eight u32 (unaligned load).
-        unsafe { _mm256_loadu_si256(a.as_ptr() as *const __m256i) }
+        // SAFETY: `a` holds eight u32 from `first` (unaligned load).
+        unsafe { _mm256_loadu_si256(a[first..].as_ptr() as *const __m256i) }
     };
     let (xor, and, or) = (_mm256_xor_si256, _mm256_and_si256, _mm256_or_si256);
     let mul = _mm256_mullo_epi32;
@@ -518,10 +541,139 @@ unsafe fn fill_lanes_explicit_avx2(
     };
     let x = to_unit(owen(i, load(&seeds.x)));
     let y = to_unit(owen(d, load(&seeds.y)));
-    // SAFETY: `xs` and `ys` hold eight f32 each (unaligned stores).
+    // SAFETY: `xs` and `ys` hold eight f32 each from `first` (unaligned stores).
     unsafe {
-        _mm256_storeu_ps(xs.as_mut_ptr(), x);
-        _mm256_storeu_ps(ys.as_mut_ptr(), y);
+        _mm256_storeu_ps(xs[first..].as_mut_ptr(), x);
+        _mm256_storeu_ps(ys[first..].as_mut_ptr(), y);
+    }
+}
+
+/// [`fill_lanes_explicit_avx2`] with sixteen lanes in AVX-512 registers (F, BW, DQ): a
+/// whole batch per instruction, comparisons into mask registers. The same operations per
+/// lane, so the same values bit for bit.
+///
+/// # Safety
+/// The processor must support AVX-512 F, BW, DQ and VL.
+#[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+#[allow(clippy::incompatible_msrv)]
+#[target_feature(enable = "avx2,avx512f,avx512bw,avx512dq,avx512vl")]
+unsafe fn fill_lanes_explicit_avx512(
+    index: u32,
+    n: u32,
+    seeds: &BatchSeeds,
+    xs: &mut [f32; BATCH],
+    ys: &mut [f32; BATCH],
+) {
+    use std::arch::x86_64::*;
+    debug_assert!(index < n && n <= EXPLICIT_MAX_COUNT);
+    const { assert!(BATCH == 16) };
+    let splat = |x: u32| _mm512_set1_epi32(x as i32);
+    let load = |a: &[u32; BATCH]| {
+        // SAFETY: `a` holds sixteen u32 (unaligned load).
+        unsafe { _mm512_loadu_si512(a.as_ptr() as *const _) }
+    };
+    let (xor, and, or) = (_mm512_xor_si512, _mm512_and_si512, _mm512_or_si512);
+    let mul = _mm512_mullo_epi32;
+    let p = load(&seeds.permutation);
+    let w = splat(bit_mask(n));
+    // permutation_round(i, w, p), lane by lane.
+    let round = |mut i: __m512i| -> __m512i {
+        i = xor(i, p);
+        i = mul(i, splat(0xe170_893d));
+        i = xor(i, _mm512_srli_epi32::<16>(p));
+        i = xor(i, _mm512_srli_epi32::<4>(and(i, w)));
+        i = xor(i, _mm512_srli_epi32::<8>(p));
+        i = mul(i, splat(0x0929_eb3f));
+        i = xor(i, _mm512_srli_epi32::<23>(p));
+        i = xor(i, _mm512_srli_epi32::<1>(and(i, w)));
+        i = mul(i, or(splat(1), _mm512_srli_epi32::<27>(p)));
+        i = mul(i, splat(0x6935_fa69));
+        i = xor(i, _mm512_srli_epi32::<11>(and(i, w)));
+        i = mul(i, splat(0x74dc_b303));
+        i = xor(i, _mm512_srli_epi32::<2>(and(i, w)));
+        i = mul(i, splat(0x9e50_1cc3));
+        i = xor(i, _mm512_srli_epi32::<2>(and(i, w)));
+        i = mul(i, splat(0xc860_a3df));
+        i = and(i, w);
+        xor(i, _mm512_srli_epi32::<5>(i))
+    };
+    let mut i = round(splat(index));
+    let i = if n.is_power_of_two() {
+        // finish_permutation: (i + p) mod n, a mask (see the AVX2 version).
+        and(_mm512_add_epi32(i, p), splat(n - 1))
+    } else {
+        // Cycle walking, then finish_permutation, as in the AVX2 version.
+        let last = splat(n - 1);
+        loop {
+            let above = _mm512_cmpgt_epi32_mask(i, last);
+            if above == 0 {
+                break;
+            }
+            i = _mm512_mask_blend_epi32(above, i, round(i));
+        }
+        let j = _mm512_add_epi32(i, p);
+        // i + p wrapped around 2^32 where the sum is below p (unsigned).
+        let wrapped = _mm512_cmplt_epu32_mask(j, p);
+        let wrap = ((1u64 << 32) % n as u64) as u32;
+        let mut v = _mm512_add_epi32(i, load(&seeds.permutation_mod));
+        v = _mm512_sub_epi32(v, _mm512_maskz_mov_epi32(wrapped, splat(wrap)));
+        let zero = _mm512_setzero_si512();
+        let negative = _mm512_cmpgt_epi32_mask(zero, v);
+        v = _mm512_add_epi32(v, _mm512_maskz_mov_epi32(negative, splat(n)));
+        let past = _mm512_cmpgt_epi32_mask(v, last);
+        _mm512_sub_epi32(v, _mm512_maskz_mov_epi32(past, splat(n)))
+    };
+    // sobol_dim1_reversed_alu(i).
+    let mut d = i;
+    d = xor(d, and(_mm512_srli_epi32::<1>(d), splat(0x5555_5555)));
+    d = xor(d, and(_mm512_srli_epi32::<2>(d), splat(0x3333_3333)));
+    d = xor(d, and(_mm512_srli_epi32::<4>(d), splat(0x0f0f_0f0f)));
+    d = xor(d, and(_mm512_srli_epi32::<8>(d), splat(0x00ff_00ff)));
+    d = xor(d, and(_mm512_srli_epi32::<16>(d), splat(0x0000_ffff)));
+    // The byte tables index within each 128-bit quarter: the 32-byte AVX2 tables, twice.
+    let table = |t: &[u8; 32]| {
+        // SAFETY: `t` holds 32 bytes (unaligned load).
+        _mm512_broadcast_i64x4(unsafe { _mm256_loadu_si256(t.as_ptr() as *const __m256i) })
+    };
+    let (bytes_reversed, nibbles_high, nibbles) = (
+        table(&BYTES_REVERSED),
+        table(&NIBBLES_REVERSED_HIGH),
+        table(&NIBBLES_REVERSED),
+    );
+    // owen_scramble_reversed(x, seed): the hash, then the bits reversed.
+    let owen = |x: __m512i, seed: __m512i| -> __m512i {
+        let mut x = _mm512_add_epi32(x, seed);
+        x = xor(x, mul(x, splat(0x6c50_b47c)));
+        x = xor(x, mul(x, splat(0xb82f_1e52)));
+        x = xor(x, mul(x, splat(0xc7af_e638)));
+        x = xor(x, mul(x, splat(0x8d22_f6e6)));
+        x = _mm512_shuffle_epi8(x, bytes_reversed);
+        let low_nibbles = _mm512_set1_epi8(0x0f);
+        let low = _mm512_shuffle_epi8(nibbles_high, and(x, low_nibbles));
+        let high = _mm512_shuffle_epi8(nibbles, and(_mm512_srli_epi16::<4>(x), low_nibbles));
+        or(low, high)
+    };
+    // to_unit, as in the AVX2 version: the odd 16-bit halves replaced by exponents.
+    let odd = 0xaaaa_aaaa;
+    let to_unit = |x: __m512i| -> __m512 {
+        let low = _mm512_mask_blend_epi16(odd, x, splat(0x4b00_0000));
+        let high = _mm512_mask_blend_epi16(odd, _mm512_srli_epi32::<16>(x), splat(0x5300_0000));
+        let high = _mm512_sub_ps(
+            _mm512_castsi512_ps(high),
+            _mm512_set1_ps(f32::from_bits(0x5300_0080)),
+        );
+        let f = _mm512_add_ps(high, _mm512_castsi512_ps(low));
+        _mm512_min_ps(
+            _mm512_mul_ps(f, _mm512_set1_ps(1.0 / 4_294_967_296.0)),
+            _mm512_set1_ps(ONE_MINUS_EPSILON),
+        )
+    };
+    let x = to_unit(owen(i, load(&seeds.x)));
+    let y = to_unit(owen(d, load(&seeds.y)));
+    // SAFETY: `xs` and `ys` hold sixteen f32 each (unaligned stores).
+    unsafe {
+        _mm512_storeu_ps(xs.as_mut_ptr(), x);
+        _mm512_storeu_ps(ys.as_mut_ptr(), y);
     }
 }
 
@@ -658,7 +810,15 @@ impl SobolSampler {
                         unsafe { batch_seeds_avx2(at.pixel_hash, at.dim0, at.n, seeds) };
                     }
                 }
-                if at.index < at.n && at.n <= EXPLICIT_MAX_COUNT {
+                let explicit = at.index < at.n && at.n <= EXPLICIT_MAX_COUNT;
+                #[cfg(lightpath_avx512)]
+                if explicit && self.lanes == Lanes::Avx512 {
+                    // SAFETY: the processor supports AVX-512 F, BW, DQ and VL (detected
+                    // in `Lanes::detect`).
+                    unsafe { fill_lanes_explicit_avx512(at.index, at.n, seeds, xs, ys) };
+                    return;
+                }
+                if explicit {
                     // SAFETY: every AVX-512 processor has AVX2 (and so does `Lanes::Avx2`).
                     unsafe { fill_lanes_explicit_avx2(at.index, at.n, seeds, xs, ys) };
                 } else if self.lanes == Lanes::Avx512 {
@@ -777,6 +937,7 @@ mod tests {
             }
             if std::arch::is_x86_feature_detected!("avx512dq")
                 && std::arch::is_x86_feature_detected!("avx512vl")
+                && std::arch::is_x86_feature_detected!("avx512bw")
             {
                 variants.push(Lanes::Avx512);
             }
@@ -871,6 +1032,17 @@ mod tests {
                     (vx.map(f32::to_bits), vy.map(f32::to_bits)),
                     "n {n} index {index}"
                 );
+                #[cfg(lightpath_avx512)]
+                if Lanes::detect() == Lanes::Avx512 {
+                    let (mut wx, mut wy) = ([0.0; BATCH], [0.0; BATCH]);
+                    // SAFETY: AVX-512 F, BW, DQ and VL are available (detected).
+                    unsafe { fill_lanes_explicit_avx512(index, n, &seeds, &mut wx, &mut wy) };
+                    assert_eq!(
+                        (xs.map(f32::to_bits), ys.map(f32::to_bits)),
+                        (wx.map(f32::to_bits), wy.map(f32::to_bits)),
+                        "AVX-512: n {n} index {index}"
+                    );
+                }
             }
         }
     }
