@@ -709,6 +709,17 @@ impl TriangleMesh {
         }
     }
 
+    /// Whether [`TriangleMesh::intersect_packets`] and [`TriangleMesh::occluded_packets`]
+    /// trace packets here (a `bvh8` mesh on a processor with AVX-512F and DQ) rather
+    /// than ray by ray.
+    pub fn traces_packets(&self) -> bool {
+        #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+        if self.packet_bvh().is_some() {
+            return true;
+        }
+        false
+    }
+
     /// The 8-wide BVH and its leaf order where packets run: a `bvh8` mesh on a
     /// processor with AVX-512F and DQ.
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]

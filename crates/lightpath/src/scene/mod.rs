@@ -125,6 +125,19 @@ pub struct Scene {
     pub environment: Option<usize>,
 }
 
+/// A closest hit found by [`Scene::intersect_batch`], not yet made into its interaction
+/// ([`Scene::batch_interaction`]): small, so that batches of hits stay cheap to move.
+#[derive(Debug, Clone)]
+pub struct BatchHit(BatchHitKind);
+
+#[derive(Debug, Clone)]
+enum BatchHitKind {
+    /// A triangle of the scene's one merged mesh.
+    Merged(ShapeHit),
+    /// Any hit, traced ray by ray.
+    Interaction(Box<SurfaceInteraction>),
+}
+
 impl Scene {
     pub(crate) fn new(
         instances: Vec<Instance>,
@@ -334,6 +347,75 @@ impl Scene {
         si.instance = i;
         si.prim = hit.prim;
         Some(si)
+    }
+
+    /// Whether [`Scene::intersect_batch`] and [`Scene::occluded_batch`] trace packets of
+    /// rays together here (all the geometry in one merged `bvh8` mesh, on a processor
+    /// with AVX-512), which pays for gathering rays into batches; elsewhere they trace
+    /// ray by ray.
+    pub fn traces_packets(&self) -> bool {
+        matches!((&self.merged[..], self.only_merged()), ([m], true) if m.mesh.traces_packets())
+    }
+
+    /// The closest hits of many rays (`hits[i]` for `rays[i]`), as
+    /// [`Scene::intersect_with_stats`] finds them one by one: the same distances, but
+    /// where two triangles are hit at exactly the same distance either may be reported.
+    /// [`Scene::batch_interaction`] makes a hit into its interaction.
+    pub fn intersect_batch(
+        &self,
+        rays: &[Ray],
+        hits: &mut [Option<BatchHit>],
+        stats: &mut RayStats,
+    ) {
+        assert_eq!(rays.len(), hits.len(), "one hit per ray");
+        if let ([m], true) = (&self.merged[..], self.only_merged()) {
+            // Packets of sixteen rays (`crate::accel::PACKET` where packets run).
+            const N: usize = 16;
+            for (rays, hits) in rays.chunks(N).zip(hits.chunks_mut(N)) {
+                let mut found = [None; N];
+                // The rays are counted here whether or not the mesh counts them.
+                let counted = stats.rays;
+                m.mesh
+                    .intersect_packets(rays, &mut found[..rays.len()], stats);
+                stats.rays = counted + rays.len() as u32;
+                for (hit, found) in hits.iter_mut().zip(found) {
+                    *hit = found.map(|h| BatchHit(BatchHitKind::Merged(h)));
+                }
+            }
+            return;
+        }
+        for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
+            *hit = self
+                .intersect_with_stats(ray, stats)
+                .map(|si| BatchHit(BatchHitKind::Interaction(Box::new(si))));
+        }
+    }
+
+    /// The interaction of a hit that [`Scene::intersect_batch`] found for `ray`: the
+    /// same as [`Scene::intersect_with_stats`] gives for the hit.
+    #[inline(always)]
+    pub fn batch_interaction(&self, ray: &Ray, hit: BatchHit) -> SurfaceInteraction {
+        match hit.0 {
+            BatchHitKind::Merged(h) => self.merged[0].interaction(ray, &h),
+            BatchHitKind::Interaction(si) => *si,
+        }
+    }
+
+    /// Whether anything blocks each of many shadow rays (`occluded[i]` for `rays[i]`),
+    /// as [`Scene::occluded_with_stats`] answers one by one.
+    pub fn occluded_batch(&self, rays: &[Ray], occluded: &mut [bool], stats: &mut RayStats) {
+        assert_eq!(rays.len(), occluded.len(), "one answer per ray");
+        if let ([m], true) = (&self.merged[..], self.only_merged()) {
+            // The rays are counted here whether or not the mesh counts them.
+            let counted = stats.rays;
+            m.mesh.occluded_packets(rays, occluded, stats);
+            stats.rays = counted + rays.len() as u32;
+            stats.shadow_rays += rays.len() as u32;
+            return;
+        }
+        for (ray, o) in rays.iter().zip(occluded.iter_mut()) {
+            *o = self.occluded_with_stats(ray, stats);
+        }
     }
 
     /// Whether the merged meshes are all the geometry (no other instances).
