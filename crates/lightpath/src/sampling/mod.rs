@@ -51,7 +51,7 @@ impl Sampler {
         }
     }
 
-    #[inline]
+    #[inline(always)]
     pub fn next_1d(&mut self) -> f32 {
         match self {
             Sampler::Independent(s) => s.next_1d(),
@@ -60,7 +60,7 @@ impl Sampler {
         }
     }
 
-    #[inline]
+    #[inline(always)]
     pub fn next_2d(&mut self) -> Vec2 {
         match self {
             Sampler::Independent(s) => s.next_2d(),
