@@ -425,7 +425,8 @@ impl Renderer<'_> {
 
     /// [`Renderer::render_tile`] compiled for AVX-512 (F, VL, DQ, BW): EVEX code with 32
     /// vector registers, a few per cent faster; still no FMA, so the image is the same
-    /// bit for bit (see [`crate::geometry::has_avx512`]).
+    /// bit for bit (see [`crate::geometry::has_avx512`]). The path tracer on a scene that
+    /// traces packets takes [`Renderer::render_tile_wavefront`] instead.
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
     #[target_feature(enable = "avx2,avx512f,avx512vl,avx512dq,avx512bw")]
     unsafe fn render_tile_avx512(
