@@ -437,7 +437,7 @@ impl Renderer<'_> {
         sums: &[Vec3],
         abandoned: &AtomicBool,
     ) -> Option<(Vec<Vec3>, RenderStats)> {
-        if let Integrator::PathTracer(pt) = self.integrator {
+        if let Some(pt) = self.integrator.path_tracer() {
             if self.scene.traces_packets() {
                 return self.render_tile_wavefront(pt, x0, y0, job, sums, abandoned);
             }
@@ -810,7 +810,7 @@ mod tests {
     /// path tracer traces packets where the processor has AVX-512): random triangles that
     /// share no edges, so that no ray meets two of them at exactly the same distance and
     /// the packet render must equal the ray-by-ray one bit for bit.
-    fn mesh_scene(sampler: &str, spp: u32) -> LoadedScene {
+    fn mesh_scene(sampler: &str, integrator: &str, spp: u32) -> LoadedScene {
         let dir = std::env::temp_dir().join(format!("lightpath-render-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let mut rng = crate::sampling::Pcg32::new(3, 17);
@@ -833,7 +833,7 @@ mod tests {
             files.push(path);
         }
         let xml = format!(
-            r#"<integrator type="pathtracer" depth="6">
+            r#"<integrator type="{integrator}"{depth}>
                 <scene>
                     <camera type="perspective">
                         <integer name="width" value="29"/>
@@ -855,7 +855,12 @@ mod tests {
                 <sampler type="{sampler}" count="{spp}"/>
             </integrator>"#,
             files[0].display(),
-            files[1].display()
+            files[1].display(),
+            depth = if integrator == "pathtracer" {
+                r#" depth="6""#
+            } else {
+                ""
+            },
         );
         let options = LoadOptions {
             accel: Some(crate::accel::AccelKind::Bvh8),
@@ -871,11 +876,18 @@ mod tests {
     /// traced alone by `PathTracer::li`, in several passes as in one, for every sampler.
     #[test]
     fn packet_path_tracer_equals_ray_by_ray() {
-        for sampler in ["independent", "sobol", "halton"] {
+        for (sampler, integrator) in [
+            ("independent", "pathtracer"),
+            ("sobol", "pathtracer"),
+            ("halton", "pathtracer"),
+            ("sobol", "direct"),
+        ] {
             let spp = 6;
-            let l = mesh_scene(sampler, spp);
+            let l = mesh_scene(sampler, integrator, spp);
             #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
             assert_eq!(l.scene.traces_packets(), crate::geometry::has_avx512());
+            // Both integrators take the packet tile where the scene traces packets.
+            assert!(l.integrator.path_tracer().is_some());
             let r = renderer(&l);
             let (image, stats) = r.render(&|_| {}).unwrap();
             let res = r.camera.resolution();
@@ -909,8 +921,8 @@ mod tests {
                 pixels: want,
             };
             assert!(want.pixels.iter().any(|p| p.x > 0.0), "the scene is lit");
-            assert_eq!(bits(&image), bits(&want), "{sampler}");
-            assert_eq!(stats.rays, rays, "{sampler}");
+            assert_eq!(bits(&image), bits(&want), "{sampler} {integrator}");
+            assert_eq!(stats.rays, rays, "{sampler} {integrator}");
             let out = r
                 .render_progressive(
                     &RenderControl {
@@ -921,7 +933,11 @@ mod tests {
                 )
                 .unwrap();
             assert!(out.passes > 1);
-            assert_eq!(bits(&out.image), bits(&want), "{sampler}, in passes");
+            assert_eq!(
+                bits(&out.image),
+                bits(&want),
+                "{sampler} {integrator}, in passes"
+            );
         }
     }
 
@@ -929,7 +945,10 @@ mod tests {
     /// shapes (ray by ray inside) and on one merged mesh (packets where they run).
     #[test]
     fn batch_queries_equal_single_queries() {
-        for l in [scene("independent", 1), mesh_scene("independent", 1)] {
+        for l in [
+            scene("independent", 1),
+            mesh_scene("independent", "pathtracer", 1),
+        ] {
             let r = renderer(&l);
             let mut sampler = r.sampler.clone();
             let mut rays = Vec::new();

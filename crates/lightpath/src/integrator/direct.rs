@@ -35,13 +35,15 @@ pub fn power_heuristic(pdf_a: f32, pdf_b: f32) -> f32 {
     }
 }
 
-const DIRECT: PathTracer = PathTracer {
-    max_depth: 2,
-    rr_depth: u32::MAX,
-    clamp: None,
-};
-
 impl Direct {
+    /// The path tracer this integrator is: paths of two vertices (the camera ray's hit
+    /// and one light sample or BSDF sample from it, combined by MIS), no roulette.
+    pub const PATH_TRACER: PathTracer = PathTracer {
+        max_depth: 2,
+        rr_depth: u32::MAX,
+        clamp: None,
+    };
+
     #[inline]
     pub fn li(
         &self,
@@ -50,6 +52,6 @@ impl Direct {
         sampler: &mut Sampler,
         stats: &mut RayStats,
     ) -> Vec3 {
-        DIRECT.li(scene, ray, sampler, stats)
+        Self::PATH_TRACER.li(scene, ray, sampler, stats)
     }
 }

@@ -47,6 +47,17 @@ impl Integrator {
         }
     }
 
+    /// The path tracer this integrator runs, if it is one (the direct integrator is a
+    /// path tracer of depth 2): renderers may advance its paths in batches
+    /// ([`PathTracer::step`]) instead of calling [`Integrator::li`].
+    pub fn path_tracer(&self) -> Option<&PathTracer> {
+        match self {
+            Integrator::PathTracer(p) => Some(p),
+            Integrator::Direct(_) => Some(&Direct::PATH_TRACER),
+            _ => None,
+        }
+    }
+
     /// The value of a pixel sample where the camera produced no ray.
     pub fn no_ray_value(&self) -> Vec3 {
         Vec3::ZERO
