@@ -885,7 +885,10 @@ mod tests {
             let spp = 6;
             let l = mesh_scene(sampler, integrator, spp);
             #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
-            assert_eq!(l.scene.traces_packets(), crate::geometry::has_avx512());
+            if crate::geometry::has_avx512() {
+                // The AVX-512 render tile is the one that takes packets.
+                assert!(l.scene.traces_packets());
+            }
             // Both integrators take the packet tile where the scene traces packets.
             assert!(l.integrator.path_tracer().is_some());
             let r = renderer(&l);
