@@ -58,6 +58,14 @@ pub struct RenderStats {
 }
 
 impl RenderStats {
+    /// Adds the 32-bit traversal counters of a few rays to the 64-bit totals.
+    fn add_rays(&mut self, rays: &RayStats) {
+        self.nodes_visited += rays.nodes_visited as u64;
+        self.prims_tested += rays.prims_tested as u64;
+        self.rays += rays.rays as u64;
+        self.shadow_rays += rays.shadow_rays as u64;
+    }
+
     fn add(&mut self, other: &RenderStats) {
         self.samples += other.samples;
         self.non_finite_samples += other.non_finite_samples;
@@ -536,11 +544,8 @@ impl Renderer<'_> {
             start(s, &mut live, &mut samplers, &mut pixels, &mut stats);
         }
         while !live.is_empty() {
-            if let Some(deadline) = job.deadline {
-                if abandoned.load(Ordering::Relaxed) || Instant::now() > deadline {
-                    abandoned.store(true, Ordering::Relaxed);
-                    return None;
-                }
+            if job.abandon_now(abandoned) {
+                return None;
             }
             let m = live.len();
             let mut ray_stats = RayStats::default();
@@ -584,10 +589,7 @@ impl Renderer<'_> {
             for s in restart.drain(..) {
                 start(s, &mut live, &mut samplers, &mut pixels, &mut stats);
             }
-            stats.nodes_visited += ray_stats.nodes_visited as u64;
-            stats.prims_tested += ray_stats.prims_tested as u64;
-            stats.rays += ray_stats.rays as u64;
-            stats.shadow_rays += ray_stats.shadow_rays as u64;
+            stats.add_rays(&ray_stats);
         }
         stats.samples += n as u64 * job.count as u64;
         Some((pixels, stats))
@@ -609,11 +611,8 @@ impl Renderer<'_> {
         let mut stats = RenderStats::default();
         for y in y0..y1 {
             for x in x0..x1 {
-                if let Some(deadline) = job.deadline {
-                    if abandoned.load(Ordering::Relaxed) || Instant::now() > deadline {
-                        abandoned.store(true, Ordering::Relaxed);
-                        return None;
-                    }
+                if job.abandon_now(abandoned) {
+                    return None;
                 }
                 let pixel = UVec2::new(x, y);
                 // Per-pixel counters, added into 64-bit totals (a tile's could overflow u32).
@@ -634,10 +633,7 @@ impl Renderer<'_> {
                     add_sample(&mut sum, value, &mut stats);
                 }
                 stats.samples += job.count as u64;
-                stats.nodes_visited += ray_stats.nodes_visited as u64;
-                stats.prims_tested += ray_stats.prims_tested as u64;
-                stats.rays += ray_stats.rays as u64;
-                stats.shadow_rays += ray_stats.shadow_rays as u64;
+                stats.add_rays(&ray_stats);
                 pixels.push(sum);
             }
         }
@@ -742,6 +738,22 @@ struct PassJob<'a> {
     /// Statistics before this pass.
     base: RenderStats,
     progress: Option<&'a (dyn Fn(&Progress) + Sync)>,
+}
+
+impl PassJob<'_> {
+    /// Whether a tile must stop: the pass was abandoned by another tile, or its deadline
+    /// has passed (which abandons it for all tiles).
+    #[inline]
+    fn abandon_now(&self, abandoned: &AtomicBool) -> bool {
+        let Some(deadline) = self.deadline else {
+            return false;
+        };
+        if abandoned.load(Ordering::Relaxed) || Instant::now() > deadline {
+            abandoned.store(true, Ordering::Relaxed);
+            return true;
+        }
+        false
+    }
 }
 
 impl Schedule {
