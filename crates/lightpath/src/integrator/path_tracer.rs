@@ -18,6 +18,7 @@ use super::power_heuristic;
 use crate::accel::RayStats;
 use crate::geometry::SurfaceInteraction;
 use crate::light::Light;
+use crate::material::Material;
 use crate::math::Ray;
 use crate::sampling::Sampler;
 use crate::scene::Scene;
@@ -46,10 +47,10 @@ impl Default for PathTracer {
 
 /// What the previous vertex knows about how the path continued from it.
 #[derive(Debug, Clone, Copy)]
-struct Previous {
-    p: Vec3,
-    bsdf_pdf: f32,
-    delta: bool,
+pub(crate) struct Previous {
+    pub(crate) p: Vec3,
+    pub(crate) bsdf_pdf: f32,
+    pub(crate) delta: bool,
 }
 
 /// A path between two of its vertices: what [`PathTracer::li`] carries around its loop,
@@ -61,10 +62,10 @@ pub struct PathState {
     pub ray: Ray,
     /// Radiance so far and throughput, in 4-lane arithmetic (the same operations per
     /// channel as with `Vec3`, bit for bit).
-    l: Vec3A,
-    beta: Vec3A,
-    prev: Option<Previous>,
-    depth: u32,
+    pub(crate) l: Vec3A,
+    pub(crate) beta: Vec3A,
+    pub(crate) prev: Option<Previous>,
+    pub(crate) depth: u32,
 }
 
 impl PathState {
@@ -85,7 +86,7 @@ impl PathState {
 #[derive(Debug, Clone, Copy)]
 pub struct ShadowQuery {
     pub ray: Ray,
-    contribution: Vec3A,
+    pub(crate) contribution: Vec3A,
 }
 
 impl ShadowQuery {
@@ -94,6 +95,39 @@ impl ShadowQuery {
     #[inline(always)]
     pub fn add_to(&self, path: &mut PathState) {
         path.l += self.contribution;
+    }
+}
+
+/// The sample numbers a path vertex draws, in the order [`PathTracer::step`] draws
+/// them: the light and its primitive (one 2D sample: stratified together, and one
+/// dimension pair of a low-discrepancy sampler instead of two), the point on the light,
+/// then the BSDF lobe and direction.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct VertexSamples {
+    pub u_light: f32,
+    pub u_prim: f32,
+    pub u_point: Vec2,
+    pub u_lobe: f32,
+    pub u_dir: Vec2,
+}
+
+impl VertexSamples {
+    #[inline(always)]
+    pub(crate) fn draw(sampler: &mut Sampler) -> Self {
+        let Vec2 {
+            x: u_light,
+            y: u_prim,
+        } = sampler.next_2d();
+        let u_point = sampler.next_2d();
+        let u_lobe = sampler.next_1d();
+        let u_dir = sampler.next_2d();
+        VertexSamples {
+            u_light,
+            u_prim,
+            u_point,
+            u_lobe,
+            u_dir,
+        }
     }
 }
 
@@ -137,52 +171,84 @@ impl PathTracer {
         sampler: &mut Sampler,
         shadow: &mut Option<ShadowQuery>,
     ) -> bool {
-        let beta = path.beta;
         let Some(si) = hit else {
-            let dir = path.ray.direction.normalize();
-            let le = scene.background(dir);
-            if le != Vec3::ZERO {
-                path.l +=
-                    beta * Vec3A::from(le) * self.environment_mis(scene, path.prev.as_ref(), dir);
-            }
+            self.miss(scene, path);
             return false;
         };
+        let Some(material) = self.arrive(scene, path, &si) else {
+            return false;
+        };
+        let u = VertexSamples::draw(sampler);
+        self.scatter(scene, path, &si, material, &u, sampler, shadow)
+    }
+
+    /// The first part of [`PathTracer::step`] for a ray that left the scene: adds the
+    /// environment's light. The path ends.
+    #[inline(always)]
+    pub(crate) fn miss(&self, scene: &Scene, path: &mut PathState) {
+        let dir = path.ray.direction.normalize();
+        let le = scene.background(dir);
+        if le != Vec3::ZERO {
+            path.l +=
+                path.beta * Vec3A::from(le) * self.environment_mis(scene, path.prev.as_ref(), dir);
+        }
+    }
+
+    /// The first part of [`PathTracer::step`] at a hit: adds what the hit emits, and
+    /// gives the material that scatters the path on, or `None` where the path ends
+    /// (its depth reached, or a surface that absorbs all light).
+    #[inline(always)]
+    pub(crate) fn arrive<'s>(
+        &self,
+        scene: &'s Scene,
+        path: &mut PathState,
+        si: &SurfaceInteraction,
+    ) -> Option<&'s Material> {
         // The unit ray direction (the scene sets `wo` to exactly its negation).
         let dir = -si.wo;
         let inst = &scene.instances[si.instance as usize];
         if inst.emission.is_some() {
-            let le = scene.emitted(&si, si.wo);
+            let le = scene.emitted(si, si.wo);
             if le != Vec3::ZERO {
                 let mis = match &path.prev {
                     Some(pv) if !pv.delta => {
-                        power_heuristic(pv.bsdf_pdf, scene.emitter_pdf(pv.p, &si, dir))
+                        power_heuristic(pv.bsdf_pdf, scene.emitter_pdf(pv.p, si, dir))
                     }
                     _ => 1.0,
                 };
-                path.l += beta * Vec3A::from(le) * mis;
+                path.l += path.beta * Vec3A::from(le) * mis;
             }
         }
         if path.depth >= self.max_depth {
-            return false;
+            return None;
         }
-        let Some(material) = scene.material(&si) else {
-            return false;
-        };
+        scene.material(si)
+    }
+
+    /// The rest of [`PathTracer::step`] after [`PathTracer::arrive`]: next-event
+    /// estimation into `shadow` and the next ray by BSDF sampling, from the vertex's
+    /// sample numbers `u` (Russian roulette draws its own number from `sampler`).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub(crate) fn scatter(
+        &self,
+        scene: &Scene,
+        path: &mut PathState,
+        si: &SurfaceInteraction,
+        material: &Material,
+        u: &VertexSamples,
+        sampler: &mut Sampler,
+        shadow: &mut Option<ShadowQuery>,
+    ) -> bool {
+        let beta = path.beta;
         // The shading frame and local wo, shared by the light and BSDF samples.
-        let bsdf = material.bsdf(&si, si.wo);
+        let bsdf = material.bsdf(si, si.wo);
 
         // Next-event estimation: one light, one shadow ray.
-        // The light and the light's primitive as one 2D sample (stratified together,
-        // and one dimension pair of a low-discrepancy sampler instead of two).
-        let Vec2 {
-            x: u_light,
-            y: u_prim,
-        } = sampler.next_2d();
-        let u_point = sampler.next_2d();
         if !material.is_delta() {
-            if let Some((index, pick)) = scene.light_sampler.sample(u_light) {
+            if let Some((index, pick)) = scene.light_sampler.sample(u.u_light) {
                 let light = &scene.lights[index];
-                if let Some(ls) = light.sample(si.p, u_prim, u_point) {
+                if let Some(ls) = light.sample(si.p, u.u_prim, u.u_point) {
                     let wi_local = bsdf.to_local(ls.wi);
                     let f = bsdf.eval_local(wi_local);
                     if f != Vec3::ZERO && ls.weight != Vec3::ZERO {
@@ -209,9 +275,7 @@ impl PathTracer {
         }
 
         // Continue the path by sampling the BSDF.
-        let u_lobe = sampler.next_1d();
-        let u_dir = sampler.next_2d();
-        let Some(bs) = bsdf.sample(u_lobe, u_dir) else {
+        let Some(bs) = bsdf.sample(u.u_lobe, u.u_dir) else {
             return false;
         };
         let mut beta = beta * Vec3A::from(bs.weight);
