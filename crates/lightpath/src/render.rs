@@ -20,7 +20,9 @@ use crate::error::{Error, Result};
 use crate::film::Image;
 use crate::integrator::Integrator;
 #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
-use crate::integrator::{PathState, PathTracer, ShadowQuery};
+use crate::integrator::{
+    DiffuseLanes, LaneResult, PathState, PathTracer, ShadowQuery, VertexSamples,
+};
 use crate::math::Ray;
 use crate::sampling::Sampler;
 #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
@@ -508,6 +510,7 @@ impl Renderer<'_> {
         let mut shadows: Vec<(usize, ShadowQuery)> = Vec::with_capacity(w);
         let mut shadow_rays: Vec<Ray> = Vec::with_capacity(w);
         let mut occluded = vec![false; w];
+        let mut lanes = DiffuseLanes::new();
         // Starts the next sample with a camera ray in slot `s`, moving the slot on to the
         // tile's next pixel when its pixel is done (samples without a camera ray add the
         // integrator's value at once).
@@ -555,16 +558,75 @@ impl Renderer<'_> {
                 .intersect_batch(&rays, &mut hits[..m], &mut ray_stats);
             shadows.clear();
             shadow_rays.clear();
-            for (i, (slot, _, path)) in live.iter_mut().enumerate() {
+            // Each path's vertex: `PathTracer::step` in parts, with the vertices that
+            // can gathered into lanes that scatter sixteen at a time.
+            let lane_done = |r: LaneResult,
+                             live: &mut [(usize, usize, PathState)],
+                             ended: &mut [bool],
+                             shadows: &mut Vec<(usize, ShadowQuery)>,
+                             shadow_rays: &mut Vec<Ray>| {
+                let i = r.tag as usize;
+                ended[i] = !r.apply(&mut live[i].2);
+                if let Some(q) = r.shadow {
+                    shadow_rays.push(q.ray);
+                    shadows.push((i, q));
+                }
+            };
+            for i in 0..m {
+                let (slot, _, path) = &mut live[i];
+                let sampler = &mut samplers[*slot];
                 let mut shadow = None;
-                let si = hits[i]
-                    .take()
-                    .map(|h| self.scene.batch_interaction(&path.ray, h));
-                ended[i] = !pt.step(self.scene, path, si, &mut samplers[*slot], &mut shadow);
+                ended[i] = match hits[i].take() {
+                    None => {
+                        pt.miss(self.scene, path);
+                        true
+                    }
+                    Some(h) => {
+                        let si = self.scene.batch_interaction(&path.ray, h);
+                        match pt.arrive(self.scene, path, &si) {
+                            None => true,
+                            Some(material) => {
+                                let u = VertexSamples::draw(sampler);
+                                if lanes.push(
+                                    pt, self.scene, i as u32, path, &si, material, &u, sampler,
+                                ) {
+                                    if lanes.is_full() {
+                                        lanes.run();
+                                        lanes.finish(|r| {
+                                            lane_done(
+                                                r,
+                                                &mut live,
+                                                &mut ended,
+                                                &mut shadows,
+                                                &mut shadow_rays,
+                                            )
+                                        });
+                                    }
+                                    continue;
+                                }
+                                !pt.scatter(
+                                    self.scene,
+                                    path,
+                                    &si,
+                                    material,
+                                    &u,
+                                    sampler,
+                                    &mut shadow,
+                                )
+                            }
+                        }
+                    }
+                };
                 if let Some(q) = shadow {
                     shadow_rays.push(q.ray);
                     shadows.push((i, q));
                 }
+            }
+            if lanes.len() > 0 {
+                lanes.run();
+                lanes.finish(|r| {
+                    lane_done(r, &mut live, &mut ended, &mut shadows, &mut shadow_rays)
+                });
             }
             let s = shadow_rays.len();
             self.scene
@@ -844,6 +906,15 @@ mod tests {
             std::fs::write(&path, obj).unwrap();
             files.push(path);
         }
+        // A flat emitting quad above the soup, facing down: the path tracer's diffuse
+        // vertices that pick it run in lanes, those that pick the point light or the
+        // environment run one by one.
+        let light = dir.join("light.obj");
+        std::fs::write(
+            &light,
+            "v -1 2.5 -1\nv 1 2.5 -1\nv 1 2.5 1\nv -1 2.5 1\nf 1 2 3\nf 1 3 4\n",
+        )
+        .unwrap();
         let xml = format!(
             r#"<integrator type="{integrator}"{depth}>
                 <scene>
@@ -863,11 +934,16 @@ mod tests {
                         <bsdf type="diffuse"><texture name="albedo" type="constant" value="0.5,0.8,0.3"/></bsdf>
                         <transform><translate z="0.5"/></transform>
                     </instance>
+                    <instance>
+                        <shape type="mesh" filename="{}"/>
+                        <emission type="lambertian"><texture name="emission" type="constant" value="4"/></emission>
+                    </instance>
                 </scene>
                 <sampler type="{sampler}" count="{spp}"/>
             </integrator>"#,
             files[0].display(),
             files[1].display(),
+            light.display(),
             depth = if integrator == "pathtracer" {
                 r#" depth="6""#
             } else {

@@ -4,12 +4,19 @@ mod ambient_occlusion;
 mod aov;
 mod camera_direction;
 mod direct;
+// The lanes run only in the AVX-512 packet render tile (their tests run everywhere).
+#[cfg_attr(not(all(target_arch = "x86_64", lightpath_avx512)), allow(dead_code))]
+mod path_lanes;
 mod path_tracer;
 
 pub use ambient_occlusion::AmbientOcclusion;
 pub use aov::{first_hit, Aov, AovLayer, AovVariable, FirstHit};
 pub use camera_direction::CameraDirection;
 pub use direct::{power_heuristic, Direct};
+#[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+pub(crate) use path_lanes::{DiffuseLanes, LaneResult};
+#[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+pub(crate) use path_tracer::VertexSamples;
 pub use path_tracer::{PathState, PathTracer, ShadowQuery};
 
 use crate::accel::RayStats;

@@ -20,7 +20,7 @@ use crate::geometry::{Shape, SurfaceInteraction, TriangleMesh};
 use crate::math::{Transform, PI};
 use crate::sampling::Distribution1D;
 use crate::texture::Texture;
-use glam::{Mat3, Vec2, Vec3};
+use glam::{Mat3, Mat4, Vec2, Vec3};
 use std::sync::Arc;
 
 /// Lambertian (constant radiance) emission, one-sided.
@@ -157,6 +157,22 @@ fn towards_area_point(
     })
 }
 
+/// One triangle of a flat, constant emitter as [`AreaLight::sample`] picks it, and the
+/// numbers that place the point on it: the point is `render_from_object` applied to the
+/// corners `p` weighted by [`crate::sampling::warp::square_to_uniform_triangle`]`(u)`.
+pub(crate) struct FlatTriangleSample<'a> {
+    /// Object-space corners.
+    pub p: &'a [Vec3; 3],
+    /// Render-space unit normal (the side that emits).
+    pub n: Vec3,
+    /// Render-space area density with which the light samples points on this triangle.
+    pub area_pdf: f32,
+    pub radiance: Vec3,
+    /// An affine matrix.
+    pub render_from_object: &'a Mat4,
+    pub u: Vec2,
+}
+
 /// The emitting surface of one instance.
 #[derive(Debug, Clone)]
 pub struct AreaLight {
@@ -274,6 +290,31 @@ impl AreaLight {
         towards_area_point(p, q, tri.n, tri.area_pdf, |w| {
             self.emission
                 .eval_at(tri.n, uv0 * b0 + uv1 * b1 + uv2 * b2, w)
+        })
+    }
+
+    /// For lights whose samples run many at once ([`crate::integrator`]'s lanes): the
+    /// triangle that [`AreaLight::sample`] picks from `u`, with everything its sample
+    /// needs, where the light is a flat triangle mesh of constant radiance under an
+    /// affine transform; `None` for other lights.
+    #[inline(always)]
+    pub(crate) fn flat_constant_sample(&self, u: Vec2) -> Option<FlatTriangleSample<'_>> {
+        let mesh = self.flat_mesh.as_ref()?;
+        let Texture::Constant(radiance) = &*self.emission.radiance else {
+            return None;
+        };
+        if !self.render_from_object.is_affine() {
+            return None;
+        }
+        let (prim, ux) = mesh.distribution.sample_reuse(u.x);
+        let tri = &mesh.triangles[prim];
+        Some(FlatTriangleSample {
+            p: &tri.p,
+            n: tri.n,
+            area_pdf: tri.area_pdf,
+            radiance: *radiance,
+            render_from_object: self.render_from_object.matrix(),
+            u: Vec2::new(ux, u.y),
         })
     }
 

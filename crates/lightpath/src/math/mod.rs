@@ -4,12 +4,13 @@
 mod bounds;
 mod float;
 mod frame;
+pub mod lanes;
 mod ray;
 mod special;
 mod transform;
 
 pub use bounds::Bounds3;
-pub use float::{gamma, next_float_down, next_float_up, offset_ray_origin};
+pub use float::{gamma, next_float_down, next_float_up, offset_ray_origin, round_away};
 pub use frame::Frame;
 pub use glam::{Mat3, Mat4, Quat, Vec2, Vec3, Vec3A, Vec4};
 pub use ray::Ray;

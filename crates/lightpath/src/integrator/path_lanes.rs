@@ -1,0 +1,671 @@
+//! [`PathTracer::scatter`] for sixteen path vertices at once, where it is both simplest
+//! and most common: a diffuse surface (two-sided, or one-sided as Mitsuba's) of constant
+//! albedo, lit by next-event estimation of a flat triangle-mesh emitter of constant
+//! radiance (or by no light at all). A renderer that advances many paths together
+//! ([`crate::render`]'s packet tile) collects such vertices with [`DiffuseLanes::push`],
+//! runs them with [`DiffuseLanes::run`] and hands the results back to the paths with
+//! [`DiffuseLanes::finish`]; other vertices take [`PathTracer::scatter`].
+//!
+//! The arithmetic is `scatter`'s, operation for operation: the same products and
+//! quotients, additions in the same order, no fused multiply-adds, the same polynomial
+//! sine and cosine. So a vertex gets the same values, bit for bit, whichever way it runs,
+//! and an image does not depend on which of its paths ran here. The work is written as
+//! loops over lanes with selects in place of branches, which the compiler turns into
+//! vector instructions (sixteen lanes per AVX-512 instruction).
+//!
+//! Nothing in a scene file selects this: the Cornell box below takes it at every vertex.
+//!
+//! ```xml
+//! <scene version="3.0.0">
+//!     <shape type="obj" filename="meshes/walls.obj"><bsdf type="diffuse"/></shape>
+//!     <shape type="obj" filename="meshes/light.obj">
+//!         <emitter type="area"><rgb name="radiance" value="18.4, 15.6, 8.0"/></emitter>
+//!     </shape>
+//! </scene>
+//! ```
+
+use super::path_tracer::{PathState, PathTracer, Previous, ShadowQuery, VertexSamples};
+use crate::geometry::SurfaceInteraction;
+use crate::light::Light;
+use crate::material::Material;
+use crate::math::lanes::{F32x16 as F, Mask16 as M, LANES};
+use crate::math::{round_away, Ray, INV_PI, PI};
+use crate::sampling::Sampler;
+use crate::scene::Scene;
+use crate::texture::Texture;
+use glam::{Vec3, Vec3A};
+
+type F3 = [F; 3];
+
+/// Up to [`LANES`] vertices in structure-of-arrays form, and their results.
+#[derive(Default)]
+pub(crate) struct DiffuseLanes {
+    len: usize,
+    /// The caller's tag of each vertex's path.
+    tag: [u32; LANES],
+    // The vertex.
+    p: F3,
+    p_error: F3,
+    n: F3,
+    shading_n: F3,
+    dpdu: F3,
+    wo: F3,
+    albedo: F3,
+    one_sided: M,
+    beta: F3,
+    u_dir: [F; 2],
+    /// Whether Russian roulette runs after this vertex, with the number `u_rr`.
+    roulette: M,
+    u_rr: F,
+    // The light sample: whether a light was picked, and its triangle.
+    lit: M,
+    reachable: M,
+    pick: F,
+    corners: [F3; 3],
+    light_n: F3,
+    area_pdf: F,
+    radiance: F3,
+    /// Columns of the light's affine render-from-object matrix.
+    matrix: [F3; 4],
+    u_triangle: [F; 2],
+    // Results.
+    shadow: M,
+    shadow_origin: F3,
+    shadow_direction: F3,
+    contribution: F3,
+    more: M,
+    ray_origin: F3,
+    ray_direction: F3,
+    beta_out: F3,
+    pdf: F,
+}
+
+/// What [`DiffuseLanes::finish`] hands back for one vertex.
+pub(crate) struct LaneResult {
+    /// The tag it was pushed with.
+    pub tag: u32,
+    /// The path's next ray, where it goes on.
+    next: Option<Next>,
+    /// The vertex's shadow ray, as [`PathTracer::step`] gives it.
+    pub shadow: Option<ShadowQuery>,
+}
+
+struct Next {
+    prev: Previous,
+    ray: Ray,
+    beta: Vec3A,
+}
+
+impl LaneResult {
+    /// Moves the vertex's path on as `scatter` would; returns whether it goes on.
+    #[inline(always)]
+    pub(crate) fn apply(&self, path: &mut PathState) -> bool {
+        let Some(next) = &self.next else {
+            return false;
+        };
+        path.prev = Some(next.prev);
+        path.ray = next.ray;
+        path.depth += 1;
+        path.beta = next.beta;
+        true
+    }
+}
+
+impl DiffuseLanes {
+    pub(crate) fn new() -> Box<DiffuseLanes> {
+        Box::default()
+    }
+
+    pub(crate) fn len(&self) -> usize {
+        self.len
+    }
+
+    pub(crate) fn is_full(&self) -> bool {
+        self.len == LANES
+    }
+
+    /// Takes the vertex where [`PathTracer::arrive`] left `path` at `si` with `material`
+    /// and the vertex's numbers `u`, when this kind of vertex runs here (then it also
+    /// draws the Russian roulette number from `sampler`, as `scatter` would); else
+    /// returns false and draws nothing. Call only while not full.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub(crate) fn push(
+        &mut self,
+        pt: &PathTracer,
+        scene: &Scene,
+        tag: u32,
+        path: &PathState,
+        si: &SurfaceInteraction,
+        material: &Material,
+        u: &VertexSamples,
+        sampler: &mut Sampler,
+    ) -> bool {
+        let constant = |m: &Material| match m {
+            Material::Diffuse(d) => match &*d.albedo {
+                Texture::Constant(c) => Some(*c),
+                _ => None,
+            },
+            _ => None,
+        };
+        let (albedo, one_sided) = match material {
+            Material::OneSided(o) => match constant(&o.inner) {
+                Some(c) => (c, true),
+                None => return false,
+            },
+            m => match constant(m) {
+                Some(c) => (c, false),
+                None => return false,
+            },
+        };
+        let light = match scene.light_sampler.sample(u.u_light) {
+            None => None,
+            Some((index, pick)) => match &scene.lights[index] {
+                Light::Area(a) => match a.flat_constant_sample(u.u_point) {
+                    Some(t) => Some((t, pick, a.placed)),
+                    None => return false,
+                },
+                _ => return false,
+            },
+        };
+        let k = self.len;
+        debug_assert!(k < LANES, "push into full lanes");
+        self.len += 1;
+        self.tag[k] = tag;
+        set3(&mut self.p, k, si.p);
+        set3(&mut self.p_error, k, si.p_error);
+        set3(&mut self.n, k, si.n);
+        set3(&mut self.shading_n, k, si.shading_n);
+        set3(&mut self.dpdu, k, si.dpdu);
+        set3(&mut self.wo, k, si.wo);
+        set3(&mut self.albedo, k, albedo);
+        self.one_sided.0[k] = one_sided;
+        set3(&mut self.beta, k, path.beta.into());
+        self.u_dir[0][k] = u.u_dir.x;
+        self.u_dir[1][k] = u.u_dir.y;
+        self.lit.0[k] = light.is_some();
+        if let Some((t, pick, reachable)) = light {
+            self.pick[k] = pick;
+            self.reachable.0[k] = reachable;
+            for (c, &corner) in self.corners.iter_mut().zip(t.p) {
+                set3(c, k, corner);
+            }
+            set3(&mut self.light_n, k, t.n);
+            self.area_pdf[k] = t.area_pdf;
+            set3(&mut self.radiance, k, t.radiance);
+            let m = t.render_from_object;
+            for (c, col) in self
+                .matrix
+                .iter_mut()
+                .zip([m.x_axis, m.y_axis, m.z_axis, m.w_axis])
+            {
+                set3(c, k, col.truncate());
+            }
+            self.u_triangle[0][k] = t.u.x;
+            self.u_triangle[1][k] = t.u.y;
+        }
+        // `scatter` draws Russian roulette's number after the vertex's own, when the
+        // path goes on past `rr_depth`; drawing it although the path then ends changes
+        // nothing (the sampler starts the next sample afresh).
+        self.roulette.0[k] = path.depth >= pt.rr_depth;
+        if self.roulette.0[k] {
+            self.u_rr[k] = sampler.next_1d();
+        }
+        true
+    }
+
+    /// [`PathTracer::scatter`] for all the vertices pushed, in lanes (see the module
+    /// notes); lanes not pushed compute garbage that nobody reads.
+    #[inline(always)]
+    pub(crate) fn run(&mut self) {
+        let (p, n, sn, tangent, wo) = (self.p, self.n, self.shading_n, self.dpdu, self.wo);
+        let one_sided = self.one_sided;
+        let zero = F::ZERO;
+        // The shading frame (`frame_from_normal_and_tangent`).
+        let d = dot(sn, tangent);
+        let g = [
+            tangent[0] - sn[0] * d,
+            tangent[1] - sn[1] * d,
+            tangent[2] - sn[2] * d,
+        ];
+        let len2 = dot(g, g);
+        let gram = len2.is_finite() & len2.gt(1e-8 * dot(tangent, tangent)) & len2.gt(zero);
+        let r = len2.sqrt();
+        let s1 = [g[0] / r, g[1] / r, g[2] / r];
+        let t1 = cross(sn, s1);
+        // Else `Frame::from_normal` (Duff et al.).
+        let sign = F::splat(1.0).copysign(sn[2]);
+        let a = -1.0 / (sign + sn[2]);
+        let b = sn[0] * sn[1] * a;
+        let s2 = [1.0 + sign * sn[0] * sn[0] * a, sign * b, -sign * sn[0]];
+        let t2 = [b, sign + sn[1] * sn[1] * a, -sn[1]];
+        let s = select3(gram, s1, s2);
+        let t = select3(gram, t1, t2);
+        let to_local = |v: F3| [dot(v, s), dot(v, t), dot(v, sn)];
+        let wo_l = to_local(wo);
+        let albedo = self.albedo;
+
+        // Next-event estimation (`sample_flat_mesh` and `towards_area_point`).
+        let [ux, uy] = self.u_triangle;
+        let lower = ux.lt(uy);
+        let (hx, hy) = (ux / 2.0, uy / 2.0);
+        let b1 = lower.select(hx, ux - hy);
+        let b2 = lower.select(uy - hx, hy);
+        let b0 = 1.0 - b1 - b2;
+        let [c0, c1, c2] = self.corners;
+        let o = each(|c| c0[c] * b0 + c1[c] * b1 + c2[c] * b2);
+        let m = self.matrix;
+        // `transform_point3`'s order: x, then y and z added onto it, then the translation.
+        let q = each(|c| m[3][c] + (m[2][c] * o[2] + (m[1][c] * o[1] + m[0][c] * o[0])));
+        let light_n = self.light_n;
+        let dq = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
+        let dist2 = dot(dq, dq);
+        let n_dot_d = dot(light_n, dq).abs();
+        let area_dist2 = self.area_pdf * dist2;
+        let inv_area_dist2 = 1.0 / area_dist2;
+        let dist = dist2.sqrt();
+        let inv_dist = 1.0 / dist;
+        let inv_cos_light = dist / n_dot_d;
+        let light_pdf = area_dist2 * inv_cos_light;
+        let sampled = self.lit
+            & !(dist2.eq(zero) | n_dot_d.eq(zero))
+            & light_pdf.gt(zero)
+            & light_pdf.is_finite();
+        let wi = [dq[0] * inv_dist, dq[1] * inv_dist, dq[2] * inv_dist];
+        let cos_light = n_dot_d * inv_dist;
+        let front = dot(light_n, [-wi[0], -wi[1], -wi[2]]).gt(zero);
+        let scale = cos_light * inv_area_dist2;
+        let weight = each(|c| front.select(self.radiance[c], zero) * scale);
+        let wi_l = to_local(wi);
+        // The diffuse BSDF's value and density, one-sided where the material is (the
+        // tests as `Diffuse` and `OneSided` write them, which NaN fails alike).
+        let same_side = !(wo_l[2] * wi_l[2]).le(zero);
+        let upper = !(wo_l[2].le(zero) | wi_l[2].le(zero));
+        let reflects = same_side & (!one_sided | upper);
+        let cos_i = wi_l[2].abs();
+        let f = each(|c| reflects.select(albedo[c] * INV_PI * cos_i, zero));
+        let bsdf_pdf = reflects.select(cos_i * INV_PI, zero);
+        let nonzero = |v: F3| v[0].ne(zero) | v[1].ne(zero) | v[2].ne(zero);
+        self.shadow = sampled & nonzero(f) & nonzero(weight);
+        // `spawn_ray_to` the point on the light.
+        let target = each(|c| p[c] + wi[c] * dist);
+        let p_error = self.p_error;
+        let to_target = [target[0] - p[0], target[1] - p[1], target[2] - p[2]];
+        let origin = offset_origin(p, p_error, n, to_target);
+        let pick = self.pick;
+        let mis = self
+            .reachable
+            .select(power_heuristic(pick * light_pdf, bsdf_pdf), F::splat(1.0));
+        let beta = self.beta;
+        let share = mis / pick;
+        for c in 0..3 {
+            self.shadow_origin[c] = origin[c];
+            self.shadow_direction[c] = target[c] - origin[c];
+            self.contribution[c] = beta[c] * f[c] * weight[c] * share;
+        }
+
+        // BSDF sampling: the cosine-weighted hemisphere (`square_to_cosine_hemisphere`).
+        let ox = 2.0 * self.u_dir[0] - 1.0;
+        let oy = 2.0 * self.u_dir[1] - 1.0;
+        let wide = ox.abs().gt(oy.abs());
+        let (num, den) = (wide.select(oy, ox), wide.select(ox, oy));
+        let (sin, cos) = sin_cos_quarter((PI / 4.0) * (num / den));
+        let centre = ox.eq(zero) & oy.eq(zero);
+        let dx = centre.select(zero, wide.select(ox * cos, oy * sin));
+        let dy = centre.select(zero, wide.select(ox * sin, oy * cos));
+        let z = (1.0 - (dx * dx + dy * dy)).max(zero).sqrt();
+        let z = wo_l[2].lt(zero).select(-z, z);
+        let pdf = z.abs() * INV_PI;
+        let sampled = !(pdf.le(zero) | wo_l[2].eq(zero))
+            & (!one_sided | (!wo_l[2].le(zero) & z.gt(zero)))
+            & pdf.is_finite()
+            & albedo[0].is_finite()
+            & albedo[1].is_finite()
+            & albedo[2].is_finite();
+        let wi_w = each(|c| s[c] * dx + t[c] * dy + sn[c] * z);
+        let beta = [
+            beta[0] * albedo[0],
+            beta[1] * albedo[1],
+            beta[2] * albedo[2],
+        ];
+        let alive = !(beta[0].eq(zero) & beta[1].eq(zero) & beta[2].eq(zero))
+            & beta[0].is_finite()
+            & beta[1].is_finite()
+            & beta[2].is_finite();
+        let origin = offset_origin(p, p_error, n, wi_w);
+        // Russian roulette (`max_element` as glam takes it: max(max(x, z), max(y, z))).
+        let q = beta[0]
+            .max(beta[2])
+            .max(beta[1].max(beta[2]))
+            .min(F::splat(0.95));
+        let roulette = self.roulette;
+        let survives = !roulette | !self.u_rr.ge(q);
+        self.more = sampled & alive & survives;
+        self.pdf = pdf;
+        for c in 0..3 {
+            self.ray_origin[c] = origin[c];
+            self.ray_direction[c] = wi_w[c];
+            self.beta_out[c] = roulette.select(beta[c] / q, beta[c]);
+        }
+    }
+
+    /// Hands each vertex's results to `done`, in the order pushed, and empties the
+    /// lanes.
+    #[inline(always)]
+    pub(crate) fn finish(&mut self, mut done: impl FnMut(LaneResult)) {
+        for k in 0..self.len {
+            let get = |a: &F3| Vec3::new(a[0][k], a[1][k], a[2][k]);
+            let shadow = self.shadow.0[k].then(|| ShadowQuery {
+                ray: Ray::with_range(
+                    get(&self.shadow_origin),
+                    get(&self.shadow_direction),
+                    0.0,
+                    1.0 - crate::geometry::SHADOW_EPSILON,
+                ),
+                contribution: Vec3A::from(get(&self.contribution)),
+            });
+            let next = self.more.0[k].then(|| Next {
+                prev: Previous {
+                    p: get(&self.p),
+                    bsdf_pdf: self.pdf[k],
+                    delta: false,
+                },
+                ray: Ray::new(get(&self.ray_origin), get(&self.ray_direction)),
+                beta: Vec3A::from(get(&self.beta_out)),
+            });
+            done(LaneResult {
+                tag: self.tag[k],
+                next,
+                shadow,
+            });
+        }
+        self.len = 0;
+    }
+}
+
+#[inline(always)]
+fn set3(a: &mut F3, k: usize, v: Vec3) {
+    a[0][k] = v.x;
+    a[1][k] = v.y;
+    a[2][k] = v.z;
+}
+
+/// glam's dot product: x, then y, then z added.
+#[inline(always)]
+fn dot(a: F3, b: F3) -> F {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// glam's cross product (each component one product less another).
+#[inline(always)]
+fn cross(a: F3, b: F3) -> F3 {
+    [
+        a[1] * b[2] - b[1] * a[2],
+        a[2] * b[0] - b[2] * a[0],
+        a[0] * b[1] - b[0] * a[1],
+    ]
+}
+
+/// The three components `f(0)`, `f(1)`, `f(2)`.
+#[inline(always)]
+fn each(f: impl Fn(usize) -> F) -> F3 {
+    [f(0), f(1), f(2)]
+}
+
+#[inline(always)]
+fn select3(c: M, a: F3, b: F3) -> F3 {
+    [
+        c.select(a[0], b[0]),
+        c.select(a[1], b[1]),
+        c.select(a[2], b[2]),
+    ]
+}
+
+/// [`crate::math::offset_ray_origin`] in lanes.
+#[inline(always)]
+fn offset_origin(p: F3, p_error: F3, n: F3, w: F3) -> F3 {
+    let d = dot([n[0].abs(), n[1].abs(), n[2].abs()], p_error);
+    let flip = dot(w, n).lt(F::ZERO);
+    each(|c| {
+        let off = n[c] * d;
+        let off = flip.select(-off, off);
+        (p[c] + off).lanewise(off, round_away)
+    })
+}
+
+/// [`super::power_heuristic`] in lanes.
+#[inline(always)]
+fn power_heuristic(pdf_a: F, pdf_b: F) -> F {
+    let (a, b) = (pdf_a * pdf_a, pdf_b * pdf_b);
+    let sum = a + b;
+    sum.eq(F::ZERO)
+        .select(F::ZERO, a.is_infinite().select(F::splat(1.0), a / sum))
+}
+
+/// `warp`'s polynomial sine and cosine for `|x| ≤ π/4`, the same operations.
+#[inline(always)]
+fn sin_cos_quarter(x: F) -> (F, F) {
+    let x2 = x * x;
+    let sin = x * (1.0 + x2 * (-1.0 / 6.0 + x2 * (1.0 / 120.0 + x2 * (-1.0 / 5040.0))));
+    let cos = 1.0 + x2 * (-0.5 + x2 * (1.0 / 24.0 + x2 * (-1.0 / 720.0 + x2 * (1.0 / 40_320.0))));
+    (sin, cos)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::{load_scene_str, LoadOptions};
+    use crate::material::{Conductor, Diffuse};
+    use crate::sampling::{IndependentSampler, Pcg32};
+    use glam::{UVec2, Vec2};
+    use std::path::Path;
+    use std::sync::Arc;
+
+    /// A Mitsuba scene of one-sided diffuse quads (one with the light behind it) lit by a
+    /// flat emitting quad (and, when
+    /// `point`, also a point light, which the lanes leave to `scatter`).
+    fn scene(point: bool) -> crate::io::LoadedScene {
+        let dir =
+            std::env::temp_dir().join(format!("lightpath-lanes-{}-{point}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let quad = |name: &str, corners: [[f32; 3]; 4]| {
+            let mut obj = String::new();
+            for c in corners {
+                obj += &format!("v {} {} {}\n", c[0], c[1], c[2]);
+            }
+            obj += "f 1 2 3\nf 1 3 4\n";
+            let path = dir.join(name);
+            std::fs::write(&path, obj).unwrap();
+            path.display().to_string()
+        };
+        let floor = quad(
+            "floor.obj",
+            [[-1., 0., -1.], [-1., 0., 1.], [1., 0., 1.], [1., 0., -1.]],
+        );
+        let wall = quad(
+            "wall.obj",
+            [
+                [-1., 0., -1.],
+                [1., 0., -1.],
+                [1., 2., -0.6],
+                [-1., 2., -0.6],
+            ],
+        );
+        // Facing down, over the light: seen from above, the light is behind it.
+        let roof = quad(
+            "roof.obj",
+            [
+                [-1., 2.2, -1.],
+                [1., 2.2, -1.],
+                [1., 2.2, 1.],
+                [-1., 2.2, 1.],
+            ],
+        );
+        let light = quad(
+            "light.obj",
+            [
+                [-0.3, 1.9, -0.3],
+                [0.3, 1.9, -0.3],
+                [0.3, 1.9, 0.3],
+                [-0.3, 1.9, 0.3],
+            ],
+        );
+        let point = if point {
+            r#"<emitter type="point"><point name="position" x="0.5" y="1.5" z="0.5"/><rgb name="intensity" value="0.5"/></emitter>"#
+        } else {
+            ""
+        };
+        let xml = format!(
+            r#"<scene version="3.0.0">
+                <sensor type="perspective"/>
+                <shape type="obj" filename="{floor}"><bsdf type="diffuse"><rgb name="reflectance" value="0.7, 0.5, 0.3"/></bsdf></shape>
+                <shape type="obj" filename="{wall}"><bsdf type="diffuse"/></shape>
+                <shape type="obj" filename="{roof}"><bsdf type="diffuse"/></shape>
+                <shape type="obj" filename="{light}">
+                    <emitter type="area"><rgb name="radiance" value="9, 8, 7"/></emitter>
+                </shape>
+                {point}
+            </scene>"#
+        );
+        let l = load_scene_str(&xml, Path::new("lanes.xml"), &LoadOptions::default()).unwrap();
+        let _ = std::fs::remove_dir_all(&dir);
+        l
+    }
+
+    /// Per vertex: what `scatter` gave (path, shadow ray, whether it goes on), and the
+    /// path and sampler as the lanes took them.
+    type Pending = (PathState, Option<ShadowQuery>, bool, PathState, Sampler);
+
+    fn bits(v: Vec3) -> [u32; 3] {
+        v.to_array().map(f32::to_bits)
+    }
+
+    fn ray_bits(r: &Ray) -> ([u32; 3], [u32; 3], u32, u32) {
+        (
+            bits(r.origin),
+            bits(r.direction),
+            r.t_min.to_bits(),
+            r.t_max.to_bits(),
+        )
+    }
+
+    /// Vertices in lanes get exactly what `scatter` gives them (next ray, throughput,
+    /// previous vertex, depth, shadow ray and its light), for one- and two-sided diffuse
+    /// surfaces seen from both sides, with and without Russian roulette; the lanes take
+    /// no vertex whose material or picked light they cannot run.
+    #[test]
+    fn lanes_equal_scatter() {
+        let pt = PathTracer {
+            max_depth: 8,
+            rr_depth: 2,
+            clamp: None,
+        };
+        for point in [false, true] {
+            let l = scene(point);
+            let scene = &l.scene;
+            let one_sided = scene.instances[0].material.clone().unwrap();
+            assert!(matches!(&*one_sided, Material::OneSided(_)));
+            let two_sided = Material::Diffuse(Diffuse {
+                albedo: Arc::new(Texture::Constant(Vec3::new(0.2, 0.9, 0.6))),
+            });
+            let conductor = Material::Conductor(Conductor {
+                reflectance: Arc::new(Texture::Constant(Vec3::ONE)),
+                ior: None,
+            });
+            let mut rng = Pcg32::new(7, point as u64);
+            let mut lanes = DiffuseLanes::new();
+            let (mut taken, mut refused, mut shadows, mut ended) = (0, 0, 0, 0);
+            let mut pending: Vec<Pending> = Vec::new();
+            let check = |lanes: &mut DiffuseLanes, pending: &mut Vec<Pending>| {
+                lanes.run();
+                lanes.finish(|r| {
+                    let (want, want_shadow, want_more, path, _) = &mut pending[r.tag as usize];
+                    let more = r.apply(path);
+                    assert_eq!(more, *want_more);
+                    if more {
+                        assert_eq!(ray_bits(&path.ray), ray_bits(&want.ray));
+                        assert_eq!(bits(path.beta.into()), bits(want.beta.into()));
+                        assert_eq!(path.depth, want.depth);
+                        let (p, q) = (path.prev.unwrap(), want.prev.unwrap());
+                        assert_eq!(
+                            (bits(p.p), p.bsdf_pdf.to_bits()),
+                            (bits(q.p), q.bsdf_pdf.to_bits())
+                        );
+                    }
+                    assert_eq!(r.shadow.is_some(), want_shadow.is_some());
+                    if let (Some(a), Some(b)) = (&r.shadow, want_shadow) {
+                        assert_eq!(ray_bits(&a.ray), ray_bits(&b.ray));
+                        assert_eq!(bits(a.contribution.into()), bits(b.contribution.into()));
+                    }
+                });
+                pending.clear();
+            };
+            for trial in 0..6000 {
+                // From inside the box and outside it (surfaces seen from behind).
+                let origin = Vec3::new(
+                    rng.next_f32() * 2.4 - 1.2,
+                    rng.next_f32() * 3.0 - 0.5,
+                    rng.next_f32() * 2.4 - 1.2,
+                );
+                let dir = crate::sampling::warp::square_to_uniform_sphere(Vec2::new(
+                    rng.next_f32(),
+                    rng.next_f32(),
+                ));
+                let Some(si) = scene.intersect(&Ray::new(origin, dir)) else {
+                    continue;
+                };
+                let material: &Material = match trial % 5 {
+                    0 | 1 => &one_sided,
+                    2 | 3 => &two_sided,
+                    _ => &conductor,
+                };
+                let mut path = PathState::new(&Ray::new(origin, dir));
+                path.beta = Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0;
+                path.depth = 1 + trial % 4;
+                let mut sampler = Sampler::Independent(IndependentSampler::new(16, 5));
+                sampler.start_pixel_sample(UVec2::new(trial, 3), 1);
+                let u = VertexSamples::draw(&mut sampler);
+                let mut want = path;
+                let mut want_sampler = sampler.clone();
+                let mut want_shadow = None;
+                let want_more = pt.scatter(
+                    scene,
+                    &mut want,
+                    &si,
+                    material,
+                    &u,
+                    &mut want_sampler,
+                    &mut want_shadow,
+                );
+                let tag = pending.len() as u32;
+                let before = sampler.clone();
+                if !lanes.push(&pt, scene, tag, &path, &si, material, &u, &mut sampler) {
+                    refused += 1;
+                    // Nothing drawn: the vertex can still take `scatter`.
+                    assert_eq!(sampler.next_1d(), before.clone().next_1d());
+                    continue;
+                }
+                taken += 1;
+                shadows += want_shadow.is_some() as u32;
+                ended += !want_more as u32;
+                if want_more {
+                    // The lanes drew what `scatter` drew.
+                    assert_eq!(sampler.next_1d(), want_sampler.next_1d());
+                }
+                pending.push((want, want_shadow, want_more, path, sampler));
+                if lanes.is_full() {
+                    check(&mut lanes, &mut pending);
+                }
+            }
+            if lanes.len() > 0 {
+                check(&mut lanes, &mut pending);
+            }
+            assert!(taken > 800, "{taken} vertices in lanes");
+            assert!(refused > 300, "{refused} refused");
+            assert!(
+                shadows > 300 && ended > 50,
+                "{shadows} shadow rays, {ended} ended"
+            );
+        }
+    }
+}
