@@ -20,9 +20,7 @@ use crate::error::{Error, Result};
 use crate::film::Image;
 use crate::integrator::Integrator;
 #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
-use crate::integrator::{
-    DiffuseLanes, LaneResult, PathState, PathTracer, ShadowQuery, VertexSamples,
-};
+use crate::integrator::{DiffuseLanes, LaneResult, PathState, PathTracer, ShadowQuery};
 use crate::math::Ray;
 use crate::sampling::Sampler;
 #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
@@ -576,54 +574,26 @@ impl Renderer<'_> {
                 let (slot, _, path) = &mut live[i];
                 let sampler = &mut samplers[*slot];
                 let mut shadow = None;
-                ended[i] = match hits[i].take() {
+                let hit = hits[i].take();
+                match lanes.step(pt, self.scene, i as u32, path, hit, sampler, &mut shadow) {
+                    Some(more) => ended[i] = !more,
                     None => {
-                        pt.miss(self.scene, path);
-                        true
-                    }
-                    Some(h) => {
-                        let si = self.scene.batch_interaction(&path.ray, h);
-                        match pt.arrive(self.scene, path, &si) {
-                            None => true,
-                            Some(material) => {
-                                let u = VertexSamples::draw(sampler);
-                                if lanes.push(
-                                    pt, self.scene, i as u32, path, &si, material, &u, sampler,
-                                ) {
-                                    if lanes.is_full() {
-                                        lanes.run();
-                                        lanes.finish(|r| {
-                                            lane_done(
-                                                r,
-                                                &mut live,
-                                                &mut ended,
-                                                &mut shadows,
-                                                &mut shadow_rays,
-                                            )
-                                        });
-                                    }
-                                    continue;
-                                }
-                                !pt.scatter(
-                                    self.scene,
-                                    path,
-                                    &si,
-                                    material,
-                                    &u,
-                                    sampler,
-                                    &mut shadow,
-                                )
-                            }
+                        if lanes.is_full() {
+                            lanes.run(self.scene);
+                            lanes.finish(|r| {
+                                lane_done(r, &mut live, &mut ended, &mut shadows, &mut shadow_rays)
+                            });
                         }
+                        continue;
                     }
-                };
+                }
                 if let Some(q) = shadow {
                     shadow_rays.push(q.ray);
                     shadows.push((i, q));
                 }
             }
             if lanes.len() > 0 {
-                lanes.run();
+                lanes.run(self.scene);
                 lanes.finish(|r| {
                     lane_done(r, &mut live, &mut ended, &mut shadows, &mut shadow_rays)
                 });

@@ -310,6 +310,14 @@ fn pack_blocks(positions: &[Vec3], indices: &[[u32; 3]], order: &[u32]) -> Vec<T
     }))
 }
 
+/// One triangle as [`TriangleMesh::lane_triangle`] gives it.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct LaneTriangle {
+    pub p: [Vec3; 3],
+    pub normals: Option<[Vec3; 3]>,
+    pub flipped: bool,
+}
+
 impl TriangleMesh {
     /// Builds a mesh from raw data. Fails if an index is out of range, a position is not
     /// finite, or attribute arrays do not match the vertex count.
@@ -446,6 +454,34 @@ impl TriangleMesh {
             self.positions[b as usize],
             self.positions[c as usize],
         )
+    }
+
+    /// What [`TriangleMesh::interaction`] reads of triangle `prim`, for code that builds
+    /// many interactions at once: the corners, the vertex normals where it interpolates
+    /// them, and whether its geometric normal is flipped. `None` for meshes with texture
+    /// coordinates (their tangents come from the coordinates).
+    #[inline(always)]
+    pub(crate) fn lane_triangle(&self, prim: u32) -> Option<LaneTriangle> {
+        if !self.uvs.is_empty() {
+            return None;
+        }
+        let [i0, i1, i2] = self.indices[prim as usize];
+        let normals = (self.smooth && !self.normals.is_empty()).then(|| {
+            [
+                self.normals[i0 as usize],
+                self.normals[i1 as usize],
+                self.normals[i2 as usize],
+            ]
+        });
+        Some(LaneTriangle {
+            p: [
+                self.positions[i0 as usize],
+                self.positions[i1 as usize],
+                self.positions[i2 as usize],
+            ],
+            normals,
+            flipped: self.flipped.get(prim as usize) == Some(&true),
+        })
     }
 
     /// Starts loading the first block of the leaf at position `first`.

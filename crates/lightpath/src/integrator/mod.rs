@@ -15,8 +15,6 @@ pub use camera_direction::CameraDirection;
 pub use direct::{power_heuristic, Direct};
 #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
 pub(crate) use path_lanes::{DiffuseLanes, LaneResult};
-#[cfg(all(target_arch = "x86_64", lightpath_avx512))]
-pub(crate) use path_tracer::VertexSamples;
 pub use path_tracer::{PathState, PathTracer, ShadowQuery};
 
 use crate::accel::RayStats;

@@ -25,17 +25,38 @@
 //! ```
 
 use super::path_tracer::{PathState, PathTracer, Previous, ShadowQuery, VertexSamples};
-use crate::geometry::SurfaceInteraction;
-use crate::light::Light;
+use crate::geometry::{ShapeHit, SurfaceInteraction};
+use crate::light::{FlatTriangleSample, Light};
 use crate::material::Material;
 use crate::math::lanes::{F32x16 as F, Mask16 as M, LANES};
-use crate::math::{round_away, Ray, INV_PI, PI};
+use crate::math::{gamma, round_away, Ray, INV_PI, PI};
 use crate::sampling::Sampler;
-use crate::scene::Scene;
+use crate::scene::{BatchHit, Scene};
 use crate::texture::Texture;
 use glam::{Vec3, Vec3A};
 
 type F3 = [F; 3];
+
+/// The three components of `$e` for `$c` = 0, 1, 2, written out (a closure might not
+/// be inlined into the vector code).
+macro_rules! each {
+    ($c:ident => $e:expr) => {
+        [
+            {
+                let $c = 0;
+                $e
+            },
+            {
+                let $c = 1;
+                $e
+            },
+            {
+                let $c = 2;
+                $e
+            },
+        ]
+    };
+}
 
 /// Up to [`LANES`] vertices in structure-of-arrays form, and their results.
 #[derive(Default)]
@@ -57,6 +78,17 @@ pub(crate) struct DiffuseLanes {
     /// Whether Russian roulette runs after this vertex, with the number `u_rr`.
     roulette: M,
     u_rr: F,
+    // Vertices pushed as hits on the merged mesh, whose interactions the lanes build
+    // (`TriangleMesh::interaction`): the triangle, the barycentrics and the ray.
+    from_hit: M,
+    hit_corners: [F3; 3],
+    hit_normals: [F3; 3],
+    smooth: M,
+    flipped: M,
+    bary: [F; 2],
+    direction: F3,
+    /// The hit and ray of each, for the rare triangle without area (built one by one).
+    hits: [Option<(ShapeHit, Ray)>; LANES],
     // The light sample: whether a light was picked, and its triangle.
     lit: M,
     reachable: M,
@@ -68,6 +100,8 @@ pub(crate) struct DiffuseLanes {
     /// Columns of the light's affine render-from-object matrix.
     matrix: [F3; 4],
     u_triangle: [F; 2],
+    /// The picked triangle's cdf interval, where `u_triangle[0]` fell.
+    cdf: [F; 2],
     // Results.
     shadow: M,
     shadow_origin: F3,
@@ -124,10 +158,82 @@ impl DiffuseLanes {
         self.len == LANES
     }
 
+    /// One vertex of a path whose ray found `hit` (by [`Scene::intersect_batch`]):
+    /// [`PathTracer::step`], with the vertex taken into the lanes where they can run it.
+    /// Returns `None` for a vertex taken (its results come from [`DiffuseLanes::finish`]
+    /// after a [`DiffuseLanes::run`]; call those when the lanes are full), else whether
+    /// the path goes on, with `shadow` set as `step` sets it.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub(crate) fn step(
+        &mut self,
+        pt: &PathTracer,
+        scene: &Scene,
+        tag: u32,
+        path: &mut PathState,
+        hit: Option<BatchHit>,
+        sampler: &mut Sampler,
+        shadow: &mut Option<ShadowQuery>,
+    ) -> Option<bool> {
+        let Some(hit) = hit else {
+            pt.miss(scene, path);
+            return Some(false);
+        };
+        // A triangle of a surface that emits nothing: `arrive` has nothing to add, and
+        // the lanes can build the interaction.
+        if let Some((shape_hit, mesh, prim, instance)) = scene.batch_triangle(&hit) {
+            let inst = &scene.instances[instance as usize];
+            if inst.emission.is_none() {
+                if path.depth >= pt.max_depth {
+                    return Some(false);
+                }
+                let Some(material) = inst.material.as_deref() else {
+                    return Some(false);
+                };
+                if let (Some(triangle), Some(diffuse)) =
+                    (mesh.lane_triangle(prim), lane_diffuse(material))
+                {
+                    let u = VertexSamples::draw(sampler);
+                    let Some(light) = lane_light(scene, &u) else {
+                        let si = scene.batch_interaction(&path.ray, hit);
+                        return Some(pt.scatter(scene, path, &si, material, &u, sampler, shadow));
+                    };
+                    let k = self.fill(pt, tag, path, diffuse, light, &u, sampler);
+                    self.from_hit.0[k] = true;
+                    for (c, (&p, &n)) in triangle
+                        .p
+                        .iter()
+                        .zip(&triangle.normals.unwrap_or([Vec3::ZERO; 3]))
+                        .enumerate()
+                    {
+                        set3(&mut self.hit_corners[c], k, p);
+                        set3(&mut self.hit_normals[c], k, n);
+                    }
+                    self.smooth.0[k] = triangle.normals.is_some();
+                    self.flipped.0[k] = triangle.flipped;
+                    self.bary[0][k] = shape_hit.uv.x;
+                    self.bary[1][k] = shape_hit.uv.y;
+                    set3(&mut self.direction, k, path.ray.direction);
+                    self.hits[k] = Some((shape_hit, path.ray));
+                    return None;
+                }
+            }
+        }
+        let si = scene.batch_interaction(&path.ray, hit);
+        let Some(material) = pt.arrive(scene, path, &si) else {
+            return Some(false);
+        };
+        let u = VertexSamples::draw(sampler);
+        if self.push(pt, scene, tag, path, &si, material, &u, sampler) {
+            return None;
+        }
+        Some(pt.scatter(scene, path, &si, material, &u, sampler, shadow))
+    }
+
     /// Takes the vertex where [`PathTracer::arrive`] left `path` at `si` with `material`
-    /// and the vertex's numbers `u`, when this kind of vertex runs here (then it also
-    /// draws the Russian roulette number from `sampler`, as `scatter` would); else
-    /// returns false and draws nothing. Call only while not full.
+    /// and the vertex's numbers `u`, when the lanes run this kind of vertex (then it also
+    /// draws Russian roulette's number from `sampler`, as `scatter` would); else returns
+    /// false and draws nothing. Call only while not full.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     pub(crate) fn push(
@@ -141,43 +247,39 @@ impl DiffuseLanes {
         u: &VertexSamples,
         sampler: &mut Sampler,
     ) -> bool {
-        let constant = |m: &Material| match m {
-            Material::Diffuse(d) => match &*d.albedo {
-                Texture::Constant(c) => Some(*c),
-                _ => None,
-            },
-            _ => None,
+        let (Some(diffuse), Some(light)) = (lane_diffuse(material), lane_light(scene, u)) else {
+            return false;
         };
-        let (albedo, one_sided) = match material {
-            Material::OneSided(o) => match constant(&o.inner) {
-                Some(c) => (c, true),
-                None => return false,
-            },
-            m => match constant(m) {
-                Some(c) => (c, false),
-                None => return false,
-            },
-        };
-        let light = match scene.light_sampler.sample(u.u_light) {
-            None => None,
-            Some((index, pick)) => match &scene.lights[index] {
-                Light::Area(a) => match a.flat_constant_sample(u.u_point) {
-                    Some(t) => Some((t, pick, a.placed)),
-                    None => return false,
-                },
-                _ => return false,
-            },
-        };
-        let k = self.len;
-        debug_assert!(k < LANES, "push into full lanes");
-        self.len += 1;
-        self.tag[k] = tag;
+        let k = self.fill(pt, tag, path, diffuse, light, u, sampler);
+        self.from_hit.0[k] = false;
         set3(&mut self.p, k, si.p);
         set3(&mut self.p_error, k, si.p_error);
         set3(&mut self.n, k, si.n);
         set3(&mut self.shading_n, k, si.shading_n);
         set3(&mut self.dpdu, k, si.dpdu);
         set3(&mut self.wo, k, si.wo);
+        true
+    }
+
+    /// Takes a vertex into the next lane, all but its interaction: the path, the
+    /// material's albedo and sidedness, the light sample and the vertex's numbers `u`
+    /// (and draws Russian roulette's number, as `scatter` would). Returns the lane.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn fill(
+        &mut self,
+        pt: &PathTracer,
+        tag: u32,
+        path: &PathState,
+        (albedo, one_sided): (Vec3, bool),
+        light: Option<(FlatTriangleSample<'_>, f32, bool)>,
+        u: &VertexSamples,
+        sampler: &mut Sampler,
+    ) -> usize {
+        let k = self.len;
+        debug_assert!(k < LANES, "push into full lanes");
+        self.len += 1;
+        self.tag[k] = tag;
         set3(&mut self.albedo, k, albedo);
         self.one_sided.0[k] = one_sided;
         set3(&mut self.beta, k, path.beta.into());
@@ -203,6 +305,8 @@ impl DiffuseLanes {
             }
             self.u_triangle[0][k] = t.u.x;
             self.u_triangle[1][k] = t.u.y;
+            self.cdf[0][k] = t.cdf.0;
+            self.cdf[1][k] = t.cdf.1;
         }
         // `scatter` draws Russian roulette's number after the vertex's own, when the
         // path goes on past `rr_depth`; drawing it although the path then ends changes
@@ -211,13 +315,16 @@ impl DiffuseLanes {
         if self.roulette.0[k] {
             self.u_rr[k] = sampler.next_1d();
         }
-        true
+        k
     }
 
     /// [`PathTracer::scatter`] for all the vertices pushed, in lanes (see the module
     /// notes); lanes not pushed compute garbage that nobody reads.
     #[inline(always)]
-    pub(crate) fn run(&mut self) {
+    pub(crate) fn run(&mut self, scene: &Scene) {
+        if self.from_hit.0[..self.len].contains(&true) {
+            self.interactions(scene);
+        }
         let (p, n, sn, tangent, wo) = (self.p, self.n, self.shading_n, self.dpdu, self.wo);
         let one_sided = self.one_sided;
         let zero = F::ZERO;
@@ -233,30 +340,32 @@ impl DiffuseLanes {
         let r = len2.sqrt();
         let s1 = [g[0] / r, g[1] / r, g[2] / r];
         let t1 = cross(sn, s1);
-        // Else `Frame::from_normal` (Duff et al.).
-        let sign = F::splat(1.0).copysign(sn[2]);
-        let a = -1.0 / (sign + sn[2]);
-        let b = sn[0] * sn[1] * a;
-        let s2 = [1.0 + sign * sn[0] * sn[0] * a, sign * b, -sign * sn[0]];
-        let t2 = [b, sign + sn[1] * sn[1] * a, -sn[1]];
+        // Else `Frame::from_normal`.
+        let (s2, t2) = duff(sn);
         let s = select3(gram, s1, s2);
         let t = select3(gram, t1, t2);
-        let to_local = |v: F3| [dot(v, s), dot(v, t), dot(v, sn)];
-        let wo_l = to_local(wo);
+
+        let wo_l = [dot(wo, s), dot(wo, t), dot(wo, sn)];
         let albedo = self.albedo;
 
         // Next-event estimation (`sample_flat_mesh` and `towards_area_point`).
-        let [ux, uy] = self.u_triangle;
+        // `sample_reuse`: the offset in the triangle's cdf interval, clamped below 1.
+        let [u0, uy] = self.u_triangle;
+        let [c0, c1] = self.cdf;
+        let ux = c1.gt(c0).select((u0 - c0) / (c1 - c0), zero);
+        let ux = ux.lt(zero).select(zero, ux);
+        let below_one = F::splat(1.0 - f32::EPSILON / 2.0);
+        let ux = ux.gt(below_one).select(below_one, ux);
         let lower = ux.lt(uy);
         let (hx, hy) = (ux / 2.0, uy / 2.0);
         let b1 = lower.select(hx, ux - hy);
         let b2 = lower.select(uy - hx, hy);
         let b0 = 1.0 - b1 - b2;
         let [c0, c1, c2] = self.corners;
-        let o = each(|c| c0[c] * b0 + c1[c] * b1 + c2[c] * b2);
+        let o = each!(c => c0[c] * b0 + c1[c] * b1 + c2[c] * b2);
         let m = self.matrix;
         // `transform_point3`'s order: x, then y and z added onto it, then the translation.
-        let q = each(|c| m[3][c] + (m[2][c] * o[2] + (m[1][c] * o[1] + m[0][c] * o[0])));
+        let q = each!(c => m[3][c] + (m[2][c] * o[2] + (m[1][c] * o[1] + m[0][c] * o[0])));
         let light_n = self.light_n;
         let dq = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
         let dist2 = dot(dq, dq);
@@ -275,20 +384,19 @@ impl DiffuseLanes {
         let cos_light = n_dot_d * inv_dist;
         let front = dot(light_n, [-wi[0], -wi[1], -wi[2]]).gt(zero);
         let scale = cos_light * inv_area_dist2;
-        let weight = each(|c| front.select(self.radiance[c], zero) * scale);
-        let wi_l = to_local(wi);
+        let weight = each!(c => front.select(self.radiance[c], zero) * scale);
+        let wi_l = [dot(wi, s), dot(wi, t), dot(wi, sn)];
         // The diffuse BSDF's value and density, one-sided where the material is (the
         // tests as `Diffuse` and `OneSided` write them, which NaN fails alike).
         let same_side = !(wo_l[2] * wi_l[2]).le(zero);
         let upper = !(wo_l[2].le(zero) | wi_l[2].le(zero));
         let reflects = same_side & (!one_sided | upper);
         let cos_i = wi_l[2].abs();
-        let f = each(|c| reflects.select(albedo[c] * INV_PI * cos_i, zero));
+        let f = each!(c => reflects.select(albedo[c] * INV_PI * cos_i, zero));
         let bsdf_pdf = reflects.select(cos_i * INV_PI, zero);
-        let nonzero = |v: F3| v[0].ne(zero) | v[1].ne(zero) | v[2].ne(zero);
         self.shadow = sampled & nonzero(f) & nonzero(weight);
         // `spawn_ray_to` the point on the light.
-        let target = each(|c| p[c] + wi[c] * dist);
+        let target = each!(c => p[c] + wi[c] * dist);
         let p_error = self.p_error;
         let to_target = [target[0] - p[0], target[1] - p[1], target[2] - p[2]];
         let origin = offset_origin(p, p_error, n, to_target);
@@ -322,7 +430,7 @@ impl DiffuseLanes {
             & albedo[0].is_finite()
             & albedo[1].is_finite()
             & albedo[2].is_finite();
-        let wi_w = each(|c| s[c] * dx + t[c] * dy + sn[c] * z);
+        let wi_w = each!(c => s[c] * dx + t[c] * dy + sn[c] * z);
         let beta = [
             beta[0] * albedo[0],
             beta[1] * albedo[1],
@@ -346,6 +454,70 @@ impl DiffuseLanes {
             self.ray_origin[c] = origin[c];
             self.ray_direction[c] = wi_w[c];
             self.beta_out[c] = roulette.select(beta[c] / q, beta[c]);
+        }
+    }
+
+    /// The interactions of the vertices pushed as hits ([`TriangleMesh::interaction`]'s
+    /// arithmetic, operation for operation, for meshes without texture coordinates).
+    #[inline(always)]
+    fn interactions(&mut self, scene: &Scene) {
+        let zero = F::ZERO;
+        let [c0, c1, c2] = self.hit_corners;
+        let [b1, b2] = self.bary;
+        let b0 = 1.0 - b1 - b2;
+        let a0 = each!(c => c0[c] * b0);
+        let a1 = each!(c => c1[c] * b1);
+        let a2 = each!(c => c2[c] * b2);
+        let p = each!(c => a0[c] + a1[c] + a2[c]);
+        let g7 = gamma(7);
+        let p_error = each!(c => g7 * (a0[c].abs() + a1[c].abs() + a2[c].abs()));
+        let e1 = each!(c => c1[c] - c0[c]);
+        let e2 = each!(c => c2[c] - c0[c]);
+        let cr = cross(e1, e2);
+        let len2 = dot(cr, cr);
+        // Triangles without area take the f64 path below, one by one.
+        let degenerate = !len2.gt(zero);
+        let recip = 1.0 / len2.sqrt();
+        let n = each!(c => cr[c] * recip);
+        let n = select3(self.flipped, neg3(n), n);
+        // Interpolated vertex normals, and the geometric normal turned to their side.
+        let [n0, n1, n2] = self.hit_normals;
+        let ns = each!(c => n0[c] * b0 + n1[c] * b1 + n2[c] * b2);
+        let ns_len2 = dot(ns, ns);
+        let smooth = self.smooth & ns_len2.gt(zero);
+        let recip = 1.0 / ns_len2.sqrt();
+        let sn = select3(smooth, each!(c => ns[c] * recip), n);
+        let n = select3(smooth & dot(n, sn).lt(zero), neg3(n), n);
+        // dp/du of the default parameterisation, else any tangent.
+        let dc = cross(e1, n);
+        let usable =
+            e1[0].is_finite() & e1[1].is_finite() & e1[2].is_finite() & dot(dc, dc).ne(zero);
+        let dpdu = select3(usable, e1, duff(n).0);
+        let d = self.direction;
+        let recip = 1.0 / dot(d, d).sqrt();
+        let wo = each!(c => -(d[c] * recip));
+        let take = self.from_hit;
+        for (field, value) in [
+            (&mut self.p, p),
+            (&mut self.p_error, p_error),
+            (&mut self.n, n),
+            (&mut self.shading_n, sn),
+            (&mut self.dpdu, dpdu),
+            (&mut self.wo, wo),
+        ] {
+            *field = select3(take, value, *field);
+        }
+        for k in 0..self.len {
+            if take.0[k] && degenerate.0[k] {
+                let (hit, ray) = self.hits[k].expect("a hit's ray");
+                let si = scene.merged_interaction(&ray, &hit);
+                set3(&mut self.p, k, si.p);
+                set3(&mut self.p_error, k, si.p_error);
+                set3(&mut self.n, k, si.n);
+                set3(&mut self.shading_n, k, si.shading_n);
+                set3(&mut self.dpdu, k, si.dpdu);
+                set3(&mut self.wo, k, si.wo);
+            }
         }
     }
 
@@ -406,10 +578,60 @@ fn cross(a: F3, b: F3) -> F3 {
     ]
 }
 
-/// The three components `f(0)`, `f(1)`, `f(2)`.
+/// [`crate::math::Frame::from_normal`]'s `s` and `t` (Duff et al.) for the unit `n`.
 #[inline(always)]
-fn each(f: impl Fn(usize) -> F) -> F3 {
-    [f(0), f(1), f(2)]
+fn duff(n: F3) -> (F3, F3) {
+    let sign = F::splat(1.0).copysign(n[2]);
+    let a = -1.0 / (sign + n[2]);
+    let b = n[0] * n[1] * a;
+    let s = [1.0 + sign * n[0] * n[0] * a, sign * b, -sign * n[0]];
+    let t = [b, sign + n[1] * n[1] * a, -n[1]];
+    (s, t)
+}
+
+/// Where any component is not zero (or is NaN).
+#[inline(always)]
+fn nonzero(v: F3) -> M {
+    v[0].ne(F::ZERO) | v[1].ne(F::ZERO) | v[2].ne(F::ZERO)
+}
+
+#[inline(always)]
+fn neg3(v: F3) -> F3 {
+    [-v[0], -v[1], -v[2]]
+}
+
+/// The albedo and sidedness of a material the lanes run: diffuse of constant albedo,
+/// two-sided or one-sided.
+#[inline(always)]
+fn lane_diffuse(material: &Material) -> Option<(Vec3, bool)> {
+    let constant = |m: &Material| match m {
+        Material::Diffuse(d) => match &*d.albedo {
+            Texture::Constant(c) => Some(*c),
+            _ => None,
+        },
+        _ => None,
+    };
+    match material {
+        Material::OneSided(o) => Some((constant(&o.inner)?, true)),
+        m => Some((constant(m)?, false)),
+    }
+}
+
+/// The light sample of a vertex with numbers `u` as the lanes take it: `Some(None)`
+/// where no light is picked, `Some(Some((triangle, pick probability, reachable by
+/// rays)))` for a flat constant mesh emitter, `None` for lights the lanes do not run.
+#[inline(always)]
+fn lane_light<'s>(
+    scene: &'s Scene,
+    u: &VertexSamples,
+) -> Option<Option<(FlatTriangleSample<'s>, f32, bool)>> {
+    let Some((index, pick)) = scene.light_sampler.sample(u.u_light) else {
+        return Some(None);
+    };
+    match &scene.lights[index] {
+        Light::Area(a) => Some(Some((a.flat_constant_sample(u.u_point)?, pick, a.placed))),
+        _ => None,
+    }
 }
 
 #[inline(always)]
@@ -426,7 +648,7 @@ fn select3(c: M, a: F3, b: F3) -> F3 {
 fn offset_origin(p: F3, p_error: F3, n: F3, w: F3) -> F3 {
     let d = dot([n[0].abs(), n[1].abs(), n[2].abs()], p_error);
     let flip = dot(w, n).lt(F::ZERO);
-    each(|c| {
+    each!(c => {
         let off = n[c] * d;
         let off = flip.select(-off, off);
         (p[c] + off).lanewise(off, round_away)
@@ -461,23 +683,41 @@ mod tests {
     use std::path::Path;
     use std::sync::Arc;
 
-    /// A Mitsuba scene of one-sided diffuse quads (one with the light behind it) lit by a
-    /// flat emitting quad (and, when
+    /// A Mitsuba scene of one-sided diffuse quads (one with the light behind it, one
+    /// mirrored, one with vertex normals) lit by a flat emitting quad (and, when
     /// `point`, also a point light, which the lanes leave to `scatter`).
     fn scene(point: bool) -> crate::io::LoadedScene {
         let dir =
             std::env::temp_dir().join(format!("lightpath-lanes-{}-{point}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        let quad = |name: &str, corners: [[f32; 3]; 4]| {
+        // Quads; `bent` ones carry vertex normals tilted off the face, on the side
+        // opposite their winding's normal.
+        let quad_with = |name: &str, corners: [[f32; 3]; 4], bent: bool| {
             let mut obj = String::new();
             for c in corners {
                 obj += &format!("v {} {} {}\n", c[0], c[1], c[2]);
             }
-            obj += "f 1 2 3\nf 1 3 4\n";
+            if bent {
+                obj += "vn 0.3 1 0\nvn -0.2 1 0.1\nvn 0 1 -0.4\nvn 0.1 0.9 0.2\n";
+                obj += "f 1//1 2//2 3//3\nf 1//1 3//3 4//4\n";
+            } else {
+                obj += "f 1 2 3\nf 1 3 4\n";
+            }
             let path = dir.join(name);
             std::fs::write(&path, obj).unwrap();
             path.display().to_string()
         };
+        let quad = |name: &str, corners: [[f32; 3]; 4]| quad_with(name, corners, false);
+        let shelf = quad_with(
+            "shelf.obj",
+            [
+                [-0.9, 0.8, -0.9],
+                [0.2, 0.8, -0.9],
+                [0.2, 0.7, 0.2],
+                [-0.9, 0.7, 0.2],
+            ],
+            true,
+        );
         let floor = quad(
             "floor.obj",
             [[-1., 0., -1.], [-1., 0., 1.], [1., 0., 1.], [1., 0., -1.]],
@@ -519,7 +759,11 @@ mod tests {
             r#"<scene version="3.0.0">
                 <sensor type="perspective"/>
                 <shape type="obj" filename="{floor}"><bsdf type="diffuse"><rgb name="reflectance" value="0.7, 0.5, 0.3"/></bsdf></shape>
-                <shape type="obj" filename="{wall}"><bsdf type="diffuse"/></shape>
+                <shape type="obj" filename="{wall}">
+                    <bsdf type="diffuse"/>
+                    <transform name="to_world"><scale x="-1"/></transform>
+                </shape>
+                <shape type="obj" filename="{shelf}"><bsdf type="diffuse"/></shape>
                 <shape type="obj" filename="{roof}"><bsdf type="diffuse"/></shape>
                 <shape type="obj" filename="{light}">
                     <emitter type="area"><rgb name="radiance" value="9, 8, 7"/></emitter>
@@ -547,6 +791,58 @@ mod tests {
             r.t_min.to_bits(),
             r.t_max.to_bits(),
         )
+    }
+
+    /// A ray from inside the box or outside it (surfaces seen from behind): origin and
+    /// unit direction.
+    fn random_ray(rng: &mut Pcg32) -> (Vec3, Vec3) {
+        let origin = Vec3::new(
+            rng.next_f32() * 2.4 - 1.2,
+            rng.next_f32() * 3.0 - 0.5,
+            rng.next_f32() * 2.4 - 1.2,
+        );
+        let u = Vec2::new(rng.next_f32(), rng.next_f32());
+        (origin, crate::sampling::warp::square_to_uniform_sphere(u))
+    }
+
+    /// Runs the lanes and compares each vertex's results with `scatter`'s or `step`'s.
+    fn run_and_compare(lanes: &mut DiffuseLanes, scene: &Scene, pending: &mut Vec<Pending>) {
+        lanes.run(scene);
+        lanes.finish(|r| {
+            let (want, want_shadow, want_more, path, _) = &mut pending[r.tag as usize];
+            let more = r.apply(path);
+            assert_same(path, more, &r.shadow, want, *want_more, want_shadow);
+        });
+        pending.clear();
+    }
+
+    /// Asserts that a path and its vertex's results equal `step`'s, bit for bit (what a
+    /// path that ended holds no longer matters).
+    fn assert_same(
+        path: &PathState,
+        more: bool,
+        shadow: &Option<ShadowQuery>,
+        want: &PathState,
+        want_more: bool,
+        want_shadow: &Option<ShadowQuery>,
+    ) {
+        assert_eq!(more, want_more);
+        assert_eq!(bits(path.l.into()), bits(want.l.into()));
+        if more {
+            assert_eq!(ray_bits(&path.ray), ray_bits(&want.ray));
+            assert_eq!(bits(path.beta.into()), bits(want.beta.into()));
+            assert_eq!(path.depth, want.depth);
+            let (p, q) = (path.prev.unwrap(), want.prev.unwrap());
+            assert_eq!(
+                (bits(p.p), p.bsdf_pdf.to_bits()),
+                (bits(q.p), q.bsdf_pdf.to_bits())
+            );
+        }
+        assert_eq!(shadow.is_some(), want_shadow.is_some());
+        if let (Some(a), Some(b)) = (shadow, want_shadow) {
+            assert_eq!(ray_bits(&a.ray), ray_bits(&b.ray));
+            assert_eq!(bits(a.contribution.into()), bits(b.contribution.into()));
+        }
     }
 
     /// Vertices in lanes get exactly what `scatter` gives them (next ray, throughput,
@@ -577,40 +873,10 @@ mod tests {
             let (mut taken, mut refused, mut shadows, mut ended) = (0, 0, 0, 0);
             let mut pending: Vec<Pending> = Vec::new();
             let check = |lanes: &mut DiffuseLanes, pending: &mut Vec<Pending>| {
-                lanes.run();
-                lanes.finish(|r| {
-                    let (want, want_shadow, want_more, path, _) = &mut pending[r.tag as usize];
-                    let more = r.apply(path);
-                    assert_eq!(more, *want_more);
-                    if more {
-                        assert_eq!(ray_bits(&path.ray), ray_bits(&want.ray));
-                        assert_eq!(bits(path.beta.into()), bits(want.beta.into()));
-                        assert_eq!(path.depth, want.depth);
-                        let (p, q) = (path.prev.unwrap(), want.prev.unwrap());
-                        assert_eq!(
-                            (bits(p.p), p.bsdf_pdf.to_bits()),
-                            (bits(q.p), q.bsdf_pdf.to_bits())
-                        );
-                    }
-                    assert_eq!(r.shadow.is_some(), want_shadow.is_some());
-                    if let (Some(a), Some(b)) = (&r.shadow, want_shadow) {
-                        assert_eq!(ray_bits(&a.ray), ray_bits(&b.ray));
-                        assert_eq!(bits(a.contribution.into()), bits(b.contribution.into()));
-                    }
-                });
-                pending.clear();
+                run_and_compare(lanes, scene, pending)
             };
             for trial in 0..6000 {
-                // From inside the box and outside it (surfaces seen from behind).
-                let origin = Vec3::new(
-                    rng.next_f32() * 2.4 - 1.2,
-                    rng.next_f32() * 3.0 - 0.5,
-                    rng.next_f32() * 2.4 - 1.2,
-                );
-                let dir = crate::sampling::warp::square_to_uniform_sphere(Vec2::new(
-                    rng.next_f32(),
-                    rng.next_f32(),
-                ));
+                let (origin, dir) = random_ray(&mut rng);
                 let Some(si) = scene.intersect(&Ray::new(origin, dir)) else {
                     continue;
                 };
@@ -665,6 +931,74 @@ mod tests {
             assert!(
                 shadows > 300 && ended > 50,
                 "{shadows} shadow rays, {ended} ended"
+            );
+        }
+    }
+
+    /// The lanes' whole vertex ([`DiffuseLanes::step`]: hits on the merged mesh whose
+    /// interactions the lanes build, emitters, misses, the depth limit, and the vertices
+    /// left to `scatter`) gives every path exactly what [`PathTracer::step`] gives it.
+    #[test]
+    fn lanes_step_equals_step() {
+        let pt = PathTracer {
+            max_depth: 5,
+            rr_depth: 3,
+            clamp: None,
+        };
+        for point in [false, true] {
+            let l = scene(point);
+            let scene = &l.scene;
+            let mut rng = Pcg32::new(8, point as u64);
+            let mut lanes = DiffuseLanes::new();
+            let (mut taken, mut direct) = (0, 0);
+            let mut pending: Vec<Pending> = Vec::new();
+            let check = |lanes: &mut DiffuseLanes, pending: &mut Vec<Pending>| {
+                run_and_compare(lanes, scene, pending)
+            };
+            for trial in 0..6000u32 {
+                let (origin, dir) = random_ray(&mut rng);
+                let dir = dir * (0.5 + rng.next_f32());
+                let ray = Ray::new(origin, dir);
+                let mut hit = [None];
+                scene.intersect_batch(&[ray], &mut hit, &mut Default::default());
+                let mut path = PathState::new(&ray);
+                path.beta = Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0;
+                path.depth = 1 + trial % 5;
+                if trial % 3 > 0 {
+                    path.prev = Some(Previous {
+                        p: origin,
+                        bsdf_pdf: rng.next_f32(),
+                        delta: trial % 7 == 0,
+                    });
+                }
+                let mut sampler = Sampler::Independent(IndependentSampler::new(16, 5));
+                sampler.start_pixel_sample(UVec2::new(trial, 4), 2);
+                let (mut want, mut want_sampler, mut want_shadow) = (path, sampler.clone(), None);
+                let si = hit[0].clone().map(|h| scene.batch_interaction(&ray, h));
+                let want_more = pt.step(scene, &mut want, si, &mut want_sampler, &mut want_shadow);
+                let tag = pending.len() as u32;
+                let mut shadow = None;
+                let [hit] = hit;
+                match lanes.step(&pt, scene, tag, &mut path, hit, &mut sampler, &mut shadow) {
+                    Some(more) => {
+                        direct += 1;
+                        assert_same(&path, more, &shadow, &want, want_more, &want_shadow);
+                    }
+                    None => {
+                        taken += 1;
+                        pending.push((want, want_shadow, want_more, path, sampler));
+                        if lanes.is_full() {
+                            check(&mut lanes, &mut pending);
+                        }
+                    }
+                }
+            }
+            if lanes.len() > 0 {
+                check(&mut lanes, &mut pending);
+            }
+            assert!(
+                taken > 1000 && direct > 1000,
+                "{taken} in lanes, {direct} not"
             );
         }
     }

@@ -159,7 +159,9 @@ fn towards_area_point(
 
 /// One triangle of a flat, constant emitter as [`AreaLight::sample`] picks it, and the
 /// numbers that place the point on it: the point is `render_from_object` applied to the
-/// corners `p` weighted by [`crate::sampling::warp::square_to_uniform_triangle`]`(u)`.
+/// corners `p` weighted by [`crate::sampling::warp::square_to_uniform_triangle`] of
+/// (`u.x`'s offset in the triangle's cdf interval `cdf`, clamped below 1, and `u.y`), as
+/// [`Distribution1D::sample_reuse`] reuses `u.x`.
 pub(crate) struct FlatTriangleSample<'a> {
     /// Object-space corners.
     pub p: &'a [Vec3; 3],
@@ -171,6 +173,7 @@ pub(crate) struct FlatTriangleSample<'a> {
     /// An affine matrix.
     pub render_from_object: &'a Mat4,
     pub u: Vec2,
+    pub cdf: (f32, f32),
 }
 
 /// The emitting surface of one instance.
@@ -306,7 +309,7 @@ impl AreaLight {
         if !self.render_from_object.is_affine() {
             return None;
         }
-        let (prim, ux) = mesh.distribution.sample_reuse(u.x);
+        let (prim, c0, c1) = mesh.distribution.cell_interval(u.x);
         let tri = &mesh.triangles[prim];
         Some(FlatTriangleSample {
             p: &tri.p,
@@ -314,7 +317,8 @@ impl AreaLight {
             area_pdf: tri.area_pdf,
             radiance: *radiance,
             render_from_object: self.render_from_object.matrix(),
-            u: Vec2::new(ux, u.y),
+            u,
+            cdf: (c0, c1),
         })
     }
 

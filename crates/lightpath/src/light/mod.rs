@@ -19,6 +19,7 @@ mod area;
 mod environment;
 mod sampler;
 
+pub(crate) use area::FlatTriangleSample;
 pub use area::{AreaLight, Emission};
 pub use environment::Environment;
 pub use sampler::LightSampler;

@@ -81,9 +81,16 @@ impl Distribution1D {
     /// The cell `u` falls in and `u`'s relative position in that cell's cdf interval.
     #[inline]
     fn cell_and_offset(&self, u: f32) -> (usize, f32) {
-        let cell = self.sample_discrete(u);
-        let (c0, c1) = (self.cdf[cell], self.cdf[cell + 1]);
+        let (cell, c0, c1) = self.cell_interval(u);
         (cell, if c1 > c0 { (u - c0) / (c1 - c0) } else { 0.0 })
+    }
+
+    /// The cell of [`Distribution1D::sample_discrete`] and its cdf interval `[c0, c1)`,
+    /// for code that computes `u`'s offset in it elsewhere (many at once).
+    #[inline(always)]
+    pub(crate) fn cell_interval(&self, u: f32) -> (usize, f32, f32) {
+        let cell = self.sample_discrete(u);
+        (cell, self.cdf[cell], self.cdf[cell + 1])
     }
 
     /// Samples a continuous position in [0, 1); returns (x, density, cell).

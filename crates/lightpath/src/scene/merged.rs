@@ -185,6 +185,22 @@ impl MergedMesh {
         si
     }
 
+    /// Merged triangle `k`: the mesh that builds its interaction, its index there, and
+    /// its instance.
+    #[inline(always)]
+    pub(crate) fn triangle(&self, k: u32) -> (&TriangleMesh, u32, u32) {
+        let k = k as usize;
+        if self.parts.is_empty() {
+            (&self.mesh, k as u32, self.instance[k])
+        } else {
+            (
+                &self.parts[self.part[k] as usize],
+                self.part_prim[k],
+                self.instance[k],
+            )
+        }
+    }
+
     /// The instance of each merged triangle.
     pub fn instances(&self) -> &[u32] {
         &self.instance

@@ -9,7 +9,7 @@ pub use merged::MergedMesh;
 
 use crate::accel::{Accel, RayStats};
 use crate::camera::Camera;
-use crate::geometry::{Shape, ShapeHit, SurfaceInteraction};
+use crate::geometry::{Shape, ShapeHit, SurfaceInteraction, TriangleMesh};
 use crate::light::{AreaLight, Emission, Light, LightSampler};
 use crate::material::Material;
 use crate::math::{Bounds3, Ray, Transform};
@@ -399,6 +399,28 @@ impl Scene {
             BatchHitKind::Merged(h) => self.merged[0].interaction(ray, &h),
             BatchHitKind::Interaction(si) => *si,
         }
+    }
+
+    /// A hit of [`Scene::intersect_batch`] on the merged mesh: the hit, the mesh that
+    /// builds its interaction with the triangle's index there, and its instance.
+    #[inline(always)]
+    pub(crate) fn batch_triangle(
+        &self,
+        hit: &BatchHit,
+    ) -> Option<(ShapeHit, &TriangleMesh, u32, u32)> {
+        match &hit.0 {
+            BatchHitKind::Merged(h) => {
+                let (mesh, prim, instance) = self.merged[0].triangle(h.prim);
+                Some((*h, mesh, prim, instance))
+            }
+            BatchHitKind::Interaction(_) => None,
+        }
+    }
+
+    /// The interaction of a hit on the merged mesh (see [`Scene::batch_triangle`]).
+    #[inline]
+    pub(crate) fn merged_interaction(&self, ray: &Ray, hit: &ShapeHit) -> SurfaceInteraction {
+        self.merged[0].interaction(ray, hit)
     }
 
     /// Whether anything blocks each of many shadow rays (`occluded[i]` for `rays[i]`),
