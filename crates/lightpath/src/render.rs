@@ -855,7 +855,13 @@ mod tests {
     /// share no edges, so that no ray meets two of them at exactly the same distance and
     /// the packet render must equal the ray-by-ray one bit for bit.
     fn mesh_scene(sampler: &str, integrator: &str, spp: u32) -> LoadedScene {
-        let dir = std::env::temp_dir().join(format!("lightpath-render-{}", std::process::id()));
+        // A folder per call: tests run in parallel, and each removes its folder.
+        static CALLS: AtomicU64 = AtomicU64::new(0);
+        let dir = std::env::temp_dir().join(format!(
+            "lightpath-render-{}-{}",
+            std::process::id(),
+            CALLS.fetch_add(1, Ordering::Relaxed)
+        ));
         std::fs::create_dir_all(&dir).unwrap();
         let mut rng = crate::sampling::Pcg32::new(3, 17);
         let mut files = Vec::new();

@@ -252,13 +252,19 @@ impl DiffuseLanes {
         };
         let k = self.fill(pt, tag, path, diffuse, light, u, sampler);
         self.from_hit.0[k] = false;
+        self.set_interaction(k, si);
+        true
+    }
+
+    /// Lane `k`'s interaction.
+    #[inline(always)]
+    fn set_interaction(&mut self, k: usize, si: &SurfaceInteraction) {
         set3(&mut self.p, k, si.p);
         set3(&mut self.p_error, k, si.p_error);
         set3(&mut self.n, k, si.n);
         set3(&mut self.shading_n, k, si.shading_n);
         set3(&mut self.dpdu, k, si.dpdu);
         set3(&mut self.wo, k, si.wo);
-        true
     }
 
     /// Takes a vertex into the next lane, all but its interaction: the path, the
@@ -511,12 +517,7 @@ impl DiffuseLanes {
             if take.0[k] && degenerate.0[k] {
                 let (hit, ray) = self.hits[k].expect("a hit's ray");
                 let si = scene.merged_interaction(&ray, &hit);
-                set3(&mut self.p, k, si.p);
-                set3(&mut self.p_error, k, si.p_error);
-                set3(&mut self.n, k, si.n);
-                set3(&mut self.shading_n, k, si.shading_n);
-                set3(&mut self.dpdu, k, si.dpdu);
-                set3(&mut self.wo, k, si.wo);
+                self.set_interaction(k, &si);
             }
         }
     }
@@ -687,8 +688,11 @@ mod tests {
     /// mirrored, one with vertex normals) lit by a flat emitting quad (and, when
     /// `point`, also a point light, which the lanes leave to `scatter`).
     fn scene(point: bool) -> crate::io::LoadedScene {
+        // A folder per call: tests run in parallel, and each removes its folder.
+        static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let dir =
-            std::env::temp_dir().join(format!("lightpath-lanes-{}-{point}", std::process::id()));
+            std::env::temp_dir().join(format!("lightpath-lanes-{}-{call}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         // Quads; `bent` ones carry vertex normals tilted off the face, on the side
         // opposite their winding's normal.
