@@ -2,16 +2,18 @@
 //! and most common: a diffuse surface (two-sided, or one-sided as Mitsuba's) of constant
 //! albedo, lit by next-event estimation of a flat triangle-mesh emitter of constant
 //! radiance (or by no light at all). A renderer that advances many paths together
-//! ([`crate::render`]'s packet tile) collects such vertices with [`DiffuseLanes::push`],
-//! runs them with [`DiffuseLanes::run`] and hands the results back to the paths with
-//! [`DiffuseLanes::finish`]; other vertices take [`PathTracer::scatter`].
+//! ([`crate::render`]'s packet tile) hands each vertex to [`DiffuseLanes::step`], which
+//! takes such vertices into lanes (building their interactions too, for hits on the
+//! merged mesh) and runs the others as [`PathTracer::step`] does; when the lanes are
+//! full, [`DiffuseLanes::run`] scatters them and [`DiffuseLanes::finish`] hands the
+//! results back to the paths.
 //!
-//! The arithmetic is `scatter`'s, operation for operation: the same products and
-//! quotients, additions in the same order, no fused multiply-adds, the same polynomial
-//! sine and cosine. So a vertex gets the same values, bit for bit, whichever way it runs,
-//! and an image does not depend on which of its paths ran here. The work is written as
-//! loops over lanes with selects in place of branches, which the compiler turns into
-//! vector instructions (sixteen lanes per AVX-512 instruction).
+//! The arithmetic is `scatter`'s (and `TriangleMesh::interaction`'s), operation for
+//! operation: the same products and quotients, additions in the same order, no fused
+//! multiply-adds, the same polynomial sine and cosine. So a vertex gets the same values,
+//! bit for bit, whichever way it runs, and an image does not depend on which of its
+//! paths ran here. The work is written with [`crate::math::lanes::F32x16`] operations
+//! and selects in place of branches: one AVX-512 instruction per operation.
 //!
 //! Nothing in a scene file selects this: the Cornell box below takes it at every vertex.
 //!

@@ -97,7 +97,7 @@ fn round_away3(po: Vec3A, off: Vec3A) -> Vec3A {
 /// `next_float_up(po)` where `off > 0`, `next_float_down(po)` where `off < 0`, else
 /// `po`: the same values, computed with selects instead of branches (the offset's signs
 /// follow the normal and are unpredictable, and this runs for every spawned ray). On
-/// x86_64 [`round_away3`] does three at once; this is the portable path and its oracle,
+/// x86_64 `round_away3` does three at once; this is the portable path and its oracle,
 /// and the path tracer's lanes run it on sixteen values at once.
 #[inline(always)]
 pub fn round_away(po: f32, off: f32) -> f32 {
