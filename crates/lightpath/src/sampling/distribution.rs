@@ -11,6 +11,10 @@ pub struct Distribution1D {
     integral: f32,
 }
 
+/// Cdfs up to this long are counted rather than searched (see
+/// [`Distribution1D::sample_discrete`]).
+const SHORT_CDF: usize = 33;
+
 impl Distribution1D {
     /// From non-negative cell values; an all-zero function samples uniformly.
     pub fn new(values: &[f32]) -> Self {
@@ -61,11 +65,15 @@ impl Distribution1D {
     /// cell of [`Distribution1D::sample_continuous`] without its position and density.
     #[inline]
     pub fn sample_discrete(&self, u: f32) -> usize {
-        // The last cell whose cdf start is <= u.
-        self.cdf
-            .partition_point(|&c| c <= u)
-            .saturating_sub(1)
-            .min(self.func.len() - 1)
+        // The last cell whose cdf start is <= u: the number of cdf entries <= u (the cdf
+        // does not decrease), less one. A short cdf is counted without branches, which a
+        // binary search over random `u` mispredicts; a long one is searched.
+        let at_or_below = if self.cdf.len() <= SHORT_CDF {
+            self.cdf.iter().map(|&c| usize::from(c <= u)).sum()
+        } else {
+            self.cdf.partition_point(|&c| c <= u)
+        };
+        at_or_below.saturating_sub(1).min(self.func.len() - 1)
     }
 
     /// The cell of [`Distribution1D::sample_discrete`] and `u`'s position inside that
@@ -176,6 +184,40 @@ mod tests {
         }
         assert_eq!(counts[1], 0);
         assert!((counts[2] as f32 / counts[0] as f32 - 3.0).abs() < 0.15);
+    }
+
+    /// The counted cell (short cdfs) equals the binary search's, on cdfs with empty
+    /// cells, at the cdf's own values, at their neighbours and for NaN; on both sides of
+    /// the length where the search takes over.
+    #[test]
+    fn counting_equals_searching() {
+        let mut rng = Pcg32::new(7, 1);
+        for n in [1, 2, 3, SHORT_CDF - 2, SHORT_CDF - 1, SHORT_CDF, 100] {
+            let values: Vec<f32> = (0..n)
+                .map(|i| {
+                    if i % 3 == 1 {
+                        0.0
+                    } else {
+                        rng.next_f32() + 0.1
+                    }
+                })
+                .collect();
+            let d = Distribution1D::new(&values);
+            let search = |u: f32| {
+                d.cdf
+                    .partition_point(|&c| c <= u)
+                    .saturating_sub(1)
+                    .min(d.func.len() - 1)
+            };
+            let mut us: Vec<f32> = (0..2000).map(|_| rng.next_f32()).collect();
+            for &c in &d.cdf {
+                us.extend([c, c.next_down(), c.next_up()]);
+            }
+            us.extend([0.0, -1.0, 1.0, f32::NAN]);
+            for u in us {
+                assert_eq!(d.sample_discrete(u), search(u), "{n} cells, u = {u}");
+            }
+        }
     }
 
     #[test]
