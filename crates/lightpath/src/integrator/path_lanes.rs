@@ -328,6 +328,18 @@ impl DiffuseLanes {
 
     /// [`PathTracer::scatter`] for all the vertices pushed, in lanes (see the module
     /// notes); lanes not pushed compute garbage that nobody reads.
+    /// [`DiffuseLanes::run`] out of line, compiled for AVX-512 (the renderer's tile is
+    /// too): the kernel's code apart from the tile loop's.
+    ///
+    /// # Safety
+    /// The processor must support AVX-512 F, VL, DQ and BW.
+    #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+    #[inline(never)]
+    #[target_feature(enable = "avx2,avx512f,avx512vl,avx512dq,avx512bw")]
+    pub(crate) unsafe fn run_avx512(&mut self, scene: &Scene) {
+        self.run(scene)
+    }
+
     #[inline(always)]
     pub(crate) fn run(&mut self, scene: &Scene) {
         if self.from_hit.0[..self.len].contains(&true) {
