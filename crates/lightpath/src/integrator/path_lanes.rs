@@ -326,8 +326,6 @@ impl DiffuseLanes {
         k
     }
 
-    /// [`PathTracer::scatter`] for all the vertices pushed, in lanes (see the module
-    /// notes); lanes not pushed compute garbage that nobody reads.
     /// [`DiffuseLanes::run`] out of line, compiled for AVX-512 (the renderer's tile is
     /// too): the kernel's code apart from the tile loop's.
     ///
@@ -340,6 +338,8 @@ impl DiffuseLanes {
         self.run(scene)
     }
 
+    /// [`PathTracer::scatter`] for all the vertices pushed, in lanes (see the module
+    /// notes); lanes not pushed compute garbage that nobody reads.
     #[inline(always)]
     pub(crate) fn run(&mut self, scene: &Scene) {
         if self.from_hit.0[..self.len].contains(&true) {
