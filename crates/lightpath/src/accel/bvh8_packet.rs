@@ -8,7 +8,8 @@
 //! rays enter is handed back to the caller, which traces those rays through it one by
 //! one ([`Bvh8::intersect_leaves_from`]), so that the packet does not drag sixteen lanes
 //! through nodes where one or two of them are live (Benthin et al.'s hybrid
-//! traversal).
+//! traversal). The triangle mesh's leaf callback does the same at a leaf that few of
+//! the rays enter: each ray alone against the leaf's triangles, eight at a time.
 //!
 //! Order: the hit children are visited nearest first by the least entry distance over
 //! their rays; an entry popped from the stack keeps only the rays whose closest hit so
