@@ -318,6 +318,46 @@ pub(crate) struct LaneTriangle {
     pub flipped: bool,
 }
 
+/// Each ray `i` of `mask` alone: `test(wr, ray, closest)` with `rays[i]` cut at lane
+/// `i`'s `t_max` returns whether it hit (any hit), or records its closest hit in
+/// `closest`, which then lowers the lane's `t_max` and goes into `found`. Returns the
+/// rays hit.
+#[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+#[inline(always)]
+fn each_ray_alone<const ANY_HIT: bool>(
+    rays: &[Ray],
+    mask: u16,
+    t_max: &mut [f32; PACKET],
+    found: &mut PacketHits,
+    mut test: impl FnMut(&WatertightRay, &Ray, &mut Option<(f32, usize, Vec2)>) -> bool,
+) -> u16 {
+    let mut any = 0;
+    let mut bits = mask;
+    while bits != 0 {
+        let i = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        let ray = Ray {
+            t_max: t_max[i],
+            ..rays[i]
+        };
+        let mut closest = None;
+        let mut hit = test(&WatertightRay::new(&ray), &ray, &mut closest);
+        if !ANY_HIT {
+            if let Some((t, at, uv)) = closest {
+                t_max[i] = t;
+                found.at[i] = at as u32;
+                found.b1[i] = uv.x;
+                found.b2[i] = uv.y;
+            }
+            hit = closest.is_some();
+        }
+        if hit {
+            any |= 1 << i;
+        }
+    }
+    any
+}
+
 /// A packet's leaf entered by `r` rays in `b` blocks is tested ray by ray (each ray
 /// against 8-lane pairs of blocks) where `r · ⌈b/2⌉ ≤ LEAF_RAYS_PER_BLOCK · b`: a
 /// 16-lane test costs about as much per triangle as a ray's 8-lane pair test (measured
@@ -874,41 +914,13 @@ impl TriangleMesh {
         found: &mut PacketHits,
     ) -> u16 {
         let order = self.accel.leaf_order().unwrap_or(&[]);
-        let mut any = 0;
-        let mut bits = mask;
-        while bits != 0 {
-            let i = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            let ray = Ray {
-                t_max: t_max[i],
-                ..rays[i]
-            };
-            let wr = WatertightRay::new(&ray);
-            let hit = if ANY_HIT {
-                self.leaf_blocks::<true>(&wr, &ray, first, count)
-            } else {
-                let mut closest = None;
-                self.leaf_closest::<true>(
-                    &wr,
-                    ray.t_min,
-                    first,
-                    count,
-                    &mut t_max[i],
-                    order,
-                    &mut closest,
-                );
-                if let Some((_, at, uv)) = closest {
-                    found.at[i] = at as u32;
-                    found.b1[i] = uv.x;
-                    found.b2[i] = uv.y;
-                }
-                closest.is_some()
-            };
-            if hit {
-                any |= 1 << i;
+        each_ray_alone::<ANY_HIT>(rays, mask, t_max, found, |wr, ray, closest| {
+            if ANY_HIT {
+                return self.leaf_blocks::<true>(wr, ray, first, count);
             }
-        }
-        any
+            let mut t = ray.t_max;
+            self.leaf_closest::<true>(wr, ray.t_min, first, count, &mut t, order, closest)
+        })
     }
 
     /// The rays `mask` of a packet, each alone through the subtree of inner node `node`
@@ -930,38 +942,16 @@ impl TriangleMesh {
     ) -> u16 {
         let order = self.accel.leaf_order().unwrap_or(&[]);
         let prefetch = |first| self.prefetch_block(first);
-        let mut any = 0;
-        let mut bits = mask;
-        while bits != 0 {
-            let i = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            let ray = Ray {
-                t_max: t_max[i],
-                ..rays[i]
-            };
-            let wr = WatertightRay::new(&ray);
-            let hit = if ANY_HIT {
-                bvh.occluded_leaves_from(&ray, (node, 0), stats, prefetch, |f, c| {
-                    self.leaf_blocks::<true>(&wr, &ray, f, c)
-                })
-            } else {
-                let mut closest = None;
-                bvh.intersect_leaves_from(&ray, (node, 0), stats, prefetch, |f, c, t| {
-                    self.leaf_closest::<true>(&wr, ray.t_min, f, c, t, order, &mut closest)
+        each_ray_alone::<ANY_HIT>(rays, mask, t_max, found, |wr, ray, closest| {
+            if ANY_HIT {
+                return bvh.occluded_leaves_from(ray, (node, 0), stats, prefetch, |f, c| {
+                    self.leaf_blocks::<true>(wr, ray, f, c)
                 });
-                if let Some((t, at, uv)) = closest {
-                    t_max[i] = t;
-                    found.at[i] = at as u32;
-                    found.b1[i] = uv.x;
-                    found.b2[i] = uv.y;
-                }
-                closest.is_some()
-            };
-            if hit {
-                any |= 1 << i;
             }
-        }
-        any
+            bvh.intersect_leaves_from(ray, (node, 0), stats, prefetch, |f, c, t| {
+                self.leaf_closest::<true>(wr, ray.t_min, f, c, t, order, closest)
+            })
+        })
     }
 
     /// Any hits of many rays (`occluded[i]` for `rays[i]`) in packets of sixteen where
