@@ -587,7 +587,8 @@ impl Renderer<'_> {
                     Some(more) => ended[i] = !more,
                     None => {
                         if lanes.is_full() {
-                            // SAFETY: this tile runs only where the processor has AVX-512 F, VL, DQ and BW.
+                            // SAFETY: this tile runs only where the processor has
+                            // AVX-512 F, VL, DQ and BW.
                             unsafe { lanes.run_avx512(self.scene) };
                             lanes.finish(|r| {
                                 lane_done(r, &mut live, &mut ended, &mut shadows, &mut shadow_rays)
@@ -602,7 +603,8 @@ impl Renderer<'_> {
                 }
             }
             if lanes.len() > 0 {
-                // SAFETY: this tile runs only where the processor has AVX-512 F, VL, DQ and BW.
+                // SAFETY: this tile runs only where the processor has AVX-512 F, VL, DQ
+                // and BW.
                 unsafe { lanes.run_avx512(self.scene) };
                 lanes.finish(|r| {
                     lane_done(r, &mut live, &mut ended, &mut shadows, &mut shadow_rays)
