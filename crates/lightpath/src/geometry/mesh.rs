@@ -865,17 +865,19 @@ impl TriangleMesh {
                 // An any-hit ray is done at its first hit.
                 let lanes = if ANY_HIT { mask & !any } else { mask };
                 let block = &self.blocks[b];
+                // The leaf's own triangles in the block (not the last block's padding).
+                let n = (first + count) as usize - b * BLOCK;
                 // SAFETY: the caller guarantees AVX-512F and DQ.
                 any |= unsafe {
                     // Rays of one octant (camera, shadow and other coherent rays)
                     // take the leaf test with early outs.
                     if packet.boxes.one_octant {
                         packet::intersect_block::<ANY_HIT, true>(
-                            block, b, &packet, t_max, lanes, found,
+                            block, b, &packet, t_max, lanes, found, n,
                         )
                     } else {
                         packet::intersect_block::<ANY_HIT, false>(
-                            block, b, &packet, t_max, lanes, found,
+                            block, b, &packet, t_max, lanes, found, n,
                         )
                     }
                 };

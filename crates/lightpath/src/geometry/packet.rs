@@ -127,11 +127,13 @@ impl Default for PacketHits {
     }
 }
 
-/// Tests the lanes `mask` of `packet` against the four triangles of block `b` (leaf
-/// positions `4b..4b+4`), lowering `t_max` and recording closer hits in `hits`; with
-/// `ANY_HIT`, neither (any hit ends the ray). Returns the lanes that hit. `COHERENT`
-/// (rays that mostly go the same way, such as a packet of one octant) skips the rest of
-/// a triangle's test when no lane passes its range test; the answers are the same.
+/// Tests the lanes `mask` of `packet` against the first `triangles` (at most four) of
+/// block `b` (leaf positions `4b..4b+4`; a leaf's last block is padded with copies of
+/// its last triangle, which need no test), lowering `t_max` and recording closer hits
+/// in `hits`; with `ANY_HIT`, neither (any hit ends the ray). Returns the lanes that
+/// hit. `COHERENT` (rays that mostly go the same way, such as a packet of one octant)
+/// skips the rest of a triangle's test when no lane passes its range test; the answers
+/// are the same.
 ///
 /// # Safety
 /// The processor must support AVX-512F and DQ.
@@ -143,6 +145,7 @@ pub unsafe fn intersect_block<const ANY_HIT: bool, const COHERENT: bool>(
     t_max_lanes: &mut [f32; PACKET],
     mask: u16,
     hits: &mut PacketHits,
+    triangles: usize,
 ) -> u16 {
     use std::arch::x86_64::*;
     // SAFETY (all intrinsics): the caller guarantees AVX-512F and DQ; loads stay inside the
@@ -175,7 +178,7 @@ pub unsafe fn intersect_block<const ANY_HIT: bool, const COHERENT: bool>(
         let (hp1, hp2) = (hits.b1.as_mut_ptr(), hits.b2.as_mut_ptr());
         let mut at = _mm512_loadu_si512(hp);
         let (mut hb1, mut hb2) = (_mm512_loadu_ps(hp1), _mm512_loadu_ps(hp2));
-        for j in 0..BLOCK {
+        for j in 0..BLOCK.min(triangles) {
             let jv = _mm512_set1_epi32(j as i32);
             let (ix, iy, iz) = (
                 _mm512_add_epi32(kx, jv),
