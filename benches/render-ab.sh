@@ -3,7 +3,7 @@
 # machine's speed drifts by 10-20% within minutes, so only same-sitting medians compare).
 #
 #   benches/render-ab.sh ROUNDS SCENE BIN... [-- RENDER OPTIONS]
-#   ROUNDS=5 benches/render-ab.sh 5 ../shared/models/cornell-box/mitsuba/cbox-rgb.xml \
+#   benches/render-ab.sh 5 ../shared/models/cornell-box/mitsuba/cbox-rgb.xml \
 #       /tmp/lp_before target/release/lightpath -- -D spp=64 -D max_depth=8 -D res=256
 #
 # Each round renders with every binary (2 threads unless the options say otherwise) and
