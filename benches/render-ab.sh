@@ -6,7 +6,7 @@
 #   benches/render-ab.sh 5 ../shared/models/cornell-box/mitsuba/cbox-rgb.xml \
 #       /tmp/lp_before target/release/lightpath -- -D spp=64 -D max_depth=8 -D res=256
 #
-# Each round renders with every binary (2 threads unless the options say otherwise) and
+# Each round renders with every binary on 2 threads (as Mitsuba is measured) and
 # reads the render time from --stats-json; prints each binary's median seconds and
 # M samples/s, and the median of the per-round ratios to the first binary.
 set -euo pipefail
