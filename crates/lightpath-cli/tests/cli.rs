@@ -55,6 +55,8 @@ fn assert_rejected(name: &str, text: &str, line: u32, needle: &str) {
         "{name}: `{needle}` missing in {stderr}"
     );
     assert!(!stderr.contains("panicked"), "{name}: {stderr}");
+    // The reader wraps a file's text in an element of its own; errors never name it.
+    assert!(!stderr.contains("lightpath-document"), "{name}: {stderr}");
     assert!(!dir.join("out.png").exists(), "{name}: output written");
     let leftovers: Vec<_> = std::fs::read_dir(&dir)
         .unwrap()
@@ -70,6 +72,18 @@ fn malformed_scenes_are_reported_with_location() {
         "<integrator type=\"aov\">\n<scene>\n</integrator>\n",
         3,
         "malformed XML",
+    );
+    assert_rejected(
+        "unclosed-element",
+        "<integrator type=\"aov\">\n<scene>\n<shape type=\"sphere\">\n",
+        3,
+        "the file ends before <shape> is closed",
+    );
+    assert_rejected(
+        "stray-closing-tag",
+        "<integrator type=\"aov\"/>\n</scene>\n",
+        2,
+        "closing tag </scene> without an opening tag",
     );
     assert_rejected(
         "unknown-shape",

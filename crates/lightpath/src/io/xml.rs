@@ -45,9 +45,44 @@ fn wrap_top_level(text: &str) -> Option<String> {
             .collect();
         body.replace_range(start..end, &blank);
     }
-    Some(format!(
-        "<lightpath-document>\n{body}\n</lightpath-document>"
-    ))
+    Some(format!("<{WRAPPER}>\n{body}\n</{WRAPPER}>"))
+}
+
+/// The element [`wrap_top_level`] puts around a file's text. Errors never name it.
+const WRAPPER: &str = "lightpath-document";
+
+/// A parse error's row (in `text`, before wrapping), column and message. The wrapper
+/// shows through in two errors, which are said in the file's own terms instead: an
+/// element still open at the end of the file (the parser meets the wrapper's closing
+/// tag, past the file's last line) and a closing tag that nothing opened (the parser
+/// expected the wrapper's).
+fn parse_error(e: &roxmltree::Error, text: &str, shift: u32) -> (u32, u32, String) {
+    let pos = e.pos();
+    let row = pos.row.saturating_sub(shift).max(1);
+    if shift > 0 {
+        if let roxmltree::Error::UnexpectedCloseTag(expected, actual, _) = e {
+            if actual == WRAPPER {
+                let last = text.lines().count().max(1) as u32;
+                let col = text.lines().last().map_or(0, |l| l.chars().count()) as u32 + 1;
+                return (
+                    last,
+                    col,
+                    format!("the file ends before <{expected}> is closed"),
+                );
+            }
+            if expected == WRAPPER {
+                let message = format!("closing tag </{actual}> without an opening tag");
+                return (row, pos.col, message);
+            }
+        }
+    }
+    // The message ends with the position, which is in the wrapped text.
+    let message = e.to_string();
+    let message = message
+        .rsplit_once(" at ")
+        .map_or(message.as_str(), |(m, _)| m)
+        .to_string();
+    (row, pos.col, message)
 }
 
 struct Reader {
@@ -112,15 +147,9 @@ impl Reader {
         let wrapped = wrap_top_level(text);
         let shift = wrapped.is_some() as u32;
         let doc = roxmltree::Document::parse(wrapped.as_deref().unwrap_or(text)).map_err(|e| {
-            let pos = e.pos();
-            // The message ends with the position, which is in the wrapped text.
-            let message = e.to_string();
-            let message = message
-                .rsplit_once(" at ")
-                .map_or(message.as_str(), |(m, _)| m)
-                .to_string();
+            let (row, col, message) = parse_error(&e, text, shift);
             Error::scene(
-                location(path, pos.row.saturating_sub(shift).max(1), pos.col),
+                location(path, row, col),
                 format!("malformed XML: {message}"),
             )
         })?;
