@@ -28,31 +28,23 @@ use glam::{Vec2, Vec3, Vec3A};
 /// function's target features), with three-operand arithmetic and the 8-lane pair test
 /// inlined. No FMA is enabled, so all expansions round alike.
 macro_rules! intersect_blocks {
-    ($mesh:expr, $ray:expr, $stats:expr, $order:expr, $avx2:expr) => {{
-        let (mesh, ray, order): (&TriangleMesh, &Ray, &[u32]) = ($mesh, $ray, $order);
+    ($mesh:expr, $ray:expr, $stats:expr, $avx2:expr) => {{
+        let (mesh, ray): (&TriangleMesh, &Ray) = ($mesh, $ray);
         // The watertight test's constants are set up at the first leaf, so rays that
         // reach none (most of those that miss) never pay for them.
         let mut lazy_wr = None;
         // The closest hit as (t, leaf position, barycentrics); the triangle's index is
-        // looked up once at the end, its cache line prefetched when the hit is found.
+        // read once at the end, from its block.
         let mut closest: Option<(f32, usize, Vec2)> = None;
         let prefetch = |first| mesh.prefetch_block(first);
         mesh.accel
             .intersect_leaves(ray, $stats, prefetch, |first, count, t_max| {
                 let wr = &*lazy_wr.get_or_insert_with(|| WatertightRay::new(ray));
-                mesh.leaf_closest::<{ $avx2 }>(
-                    wr,
-                    ray.t_min,
-                    first,
-                    count,
-                    t_max,
-                    order,
-                    &mut closest,
-                )
+                mesh.leaf_closest::<{ $avx2 }>(wr, ray.t_min, first, count, t_max, &mut closest)
             });
         closest.map(|(t, at, uv)| ShapeHit {
             t,
-            prim: order[at],
+            prim: mesh.block_prim(at),
             uv,
         })
     }};
@@ -234,13 +226,12 @@ pub fn intersect_triangle_watertight(
 }
 
 /// Takes the nearest of the lanes hit by the block(s) starting at block `b` as the closest
-/// hit `(t, leaf position, barycentrics)`, lowering `t_max` and prefetching the line of
-/// the triangle's index in `order`; returns whether any lane hit.
+/// hit `(t, leaf position, barycentrics)`, lowering `t_max`; returns whether any lane
+/// hit.
 #[inline(always)]
 fn take_nearest<T: std::ops::Index<usize, Output = f32>>(
     b: usize,
     (bits, t, b1, b2): &(u32, T, T, T),
-    order: &[u32],
     t_max: &mut f32,
     closest: &mut Option<(f32, usize, Vec2)>,
 ) -> bool {
@@ -250,7 +241,6 @@ fn take_nearest<T: std::ops::Index<usize, Output = f32>>(
     let lane = nearest_lane(*bits, t);
     *t_max = t[lane];
     let at = b * BLOCK + lane;
-    prefetch_line(order.as_ptr().wrapping_add(at));
     *closest = Some((t[lane], at, Vec2::new(b1[lane], b2[lane])));
     true
 }
@@ -296,6 +286,7 @@ fn pack_blocks(positions: &[Vec3], indices: &[[u32; 3]], order: &[u32]) -> Vec<T
     use rayon::prelude::*;
     crate::accel::collect_huge(order.par_chunks(BLOCK).map(|chunk| {
         let mut tris = [[Vec3::ZERO; 3]; BLOCK];
+        let mut prims = [0; BLOCK];
         for (lane, tri) in tris.iter_mut().enumerate() {
             // A short last chunk repeats its last triangle (leaves are padded anyway).
             let prim = chunk[lane.min(chunk.len() - 1)];
@@ -305,8 +296,9 @@ fn pack_blocks(positions: &[Vec3], indices: &[[u32; 3]], order: &[u32]) -> Vec<T
                 positions[b as usize],
                 positions[c as usize],
             ];
+            prims[lane] = prim;
         }
-        TriangleBlock::new(tris)
+        TriangleBlock::new(tris, prims)
     }))
 }
 
@@ -531,6 +523,13 @@ impl TriangleMesh {
         })
     }
 
+    /// The index of the triangle at leaf position `at`, from its block (which a hit there
+    /// has just loaded).
+    #[inline(always)]
+    fn block_prim(&self, at: usize) -> u32 {
+        self.blocks[at / BLOCK].prim[at % BLOCK]
+    }
+
     /// Starts loading the first block of the leaf at position `first`.
     #[inline(always)]
     fn prefetch_block(&self, first: u32) {
@@ -543,18 +542,18 @@ impl TriangleMesh {
     /// Closest hit through the mesh's BVH.
     #[inline(always)]
     pub fn intersect(&self, ray: &Ray, stats: &mut RayStats) -> Option<ShapeHit> {
-        if let Some(order) = self.accel.leaf_order().filter(|_| !self.blocks.is_empty()) {
+        if !self.blocks.is_empty() {
             #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
             if self.avx512 {
                 // SAFETY: `avx512` is set only where the processor supports it.
-                return unsafe { self.intersect_blocks_avx512(ray, stats, order) };
+                return unsafe { self.intersect_blocks_avx512(ray, stats) };
             }
             #[cfg(target_arch = "x86_64")]
             if self.avx2 {
                 // SAFETY: `avx2` is set only where the processor supports AVX2.
-                return unsafe { self.intersect_blocks_avx2(ray, stats, order) };
+                return unsafe { self.intersect_blocks_avx2(ray, stats) };
             }
-            return intersect_blocks!(self, ray, stats, order, false);
+            return intersect_blocks!(self, ray, stats, false);
         }
         let wr = WatertightRay::new(ray);
         let mut best = None;
@@ -579,13 +578,8 @@ impl TriangleMesh {
     /// [`TriangleMesh::intersect`] over the SIMD blocks, compiled for AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn intersect_blocks_avx2(
-        &self,
-        ray: &Ray,
-        stats: &mut RayStats,
-        order: &[u32],
-    ) -> Option<ShapeHit> {
-        intersect_blocks!(self, ray, stats, order, true)
+    unsafe fn intersect_blocks_avx2(&self, ray: &Ray, stats: &mut RayStats) -> Option<ShapeHit> {
+        intersect_blocks!(self, ray, stats, true)
     }
 
     /// [`TriangleMesh::occluded`] over the SIMD blocks, compiled for AVX2.
@@ -599,13 +593,8 @@ impl TriangleMesh {
     /// [`has_avx512`]).
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
     #[target_feature(enable = "avx2,avx512f,avx512vl,avx512dq,avx512bw")]
-    unsafe fn intersect_blocks_avx512(
-        &self,
-        ray: &Ray,
-        stats: &mut RayStats,
-        order: &[u32],
-    ) -> Option<ShapeHit> {
-        intersect_blocks!(self, ray, stats, order, true)
+    unsafe fn intersect_blocks_avx512(&self, ray: &Ray, stats: &mut RayStats) -> Option<ShapeHit> {
+        intersect_blocks!(self, ray, stats, true)
     }
 
     /// [`TriangleMesh::occluded`] over the SIMD blocks, compiled for AVX-512.
@@ -627,7 +616,6 @@ impl TriangleMesh {
         first: u32,
         count: u32,
         t_max: &mut f32,
-        order: &[u32],
         closest: &mut Option<(f32, usize, Vec2)>,
     ) -> bool {
         let mut found = false;
@@ -644,14 +632,14 @@ impl TriangleMesh {
                 // SAFETY: `avx2` is set only where the processor supports AVX2.
                 let mut hits = unsafe { intersect_pair::<AVX2_CALLER>(x, y, wr, t_min, *t_max) };
                 hits.0 &= if last { 0xf } else { 0xff };
-                found |= take_nearest(b, &hits, order, t_max, closest);
+                found |= take_nearest(b, &hits, t_max, closest);
                 b += 2;
             }
             return found;
         }
         while b < end {
             let hits = self.blocks[b].intersect(wr, t_min, *t_max);
-            found |= take_nearest(b, &hits, order, t_max, closest);
+            found |= take_nearest(b, &hits, t_max, closest);
             b += 1;
         }
         found
@@ -722,12 +710,12 @@ impl TriangleMesh {
             |_| -> State { (None, None) },
             |(wr, closest), ray, first, count, t_max| {
                 let wr = &*wr.get_or_insert_with(|| WatertightRay::new(ray));
-                self.leaf_closest::<false>(wr, ray.t_min, first, count, t_max, order, closest)
+                self.leaf_closest::<false>(wr, ray.t_min, first, count, t_max, closest)
             },
             |i, (_, closest), _| {
                 hits[i] = closest.map(|(t, at, uv)| ShapeHit {
                     t,
-                    prim: order[at],
+                    prim: self.block_prim(at),
                     uv,
                 });
             },
@@ -771,7 +759,7 @@ impl TriangleMesh {
     ) {
         assert_eq!(rays.len(), hits.len(), "one hit per ray");
         #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
-        if let Some((bvh, order)) = self.packet_bvh() {
+        if let Some(bvh) = self.packet_bvh() {
             let (mut t, mut found) = ([0.0; PACKET], PacketHits::default());
             for (rays, hits) in rays.chunks(PACKET).zip(hits.chunks_mut(PACKET)) {
                 // SAFETY: the processor supports AVX-512F and DQ (checked above).
@@ -780,7 +768,7 @@ impl TriangleMesh {
                 for (i, h) in hits.iter_mut().enumerate() {
                     *h = (hit & (1 << i) != 0).then(|| ShapeHit {
                         t: t[i],
-                        prim: order[found.at[i] as usize],
+                        prim: self.block_prim(found.at[i] as usize),
                         uv: Vec2::new(found.b1[i], found.b2[i]),
                     });
                 }
@@ -803,15 +791,15 @@ impl TriangleMesh {
         false
     }
 
-    /// The 8-wide BVH and its leaf order where packets run: a `bvh8` mesh on a
-    /// processor with AVX-512F and DQ.
+    /// The 8-wide BVH where packets run: a `bvh8` mesh on a processor with AVX-512F and
+    /// DQ.
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
-    fn packet_bvh(&self) -> Option<(&crate::accel::Bvh8, &[u32])> {
-        match (&self.accel, self.accel.leaf_order()) {
-            (Accel::Bvh8(bvh), Some(order)) if crate::accel::Bvh8::packets_supported() => {
+    fn packet_bvh(&self) -> Option<&crate::accel::Bvh8> {
+        match &self.accel {
+            Accel::Bvh8(bvh) if crate::accel::Bvh8::packets_supported() => {
                 // A BVH8 mesh always has its blocks (see `TriangleMesh::new`).
-                debug_assert!(!self.blocks.is_empty() || order.is_empty());
-                Some((bvh, order))
+                debug_assert!(!self.blocks.is_empty() || bvh.prim_order().is_empty());
+                Some(bvh)
             }
             _ => None,
         }
@@ -915,13 +903,12 @@ impl TriangleMesh {
         t_max: &mut [f32; PACKET],
         found: &mut PacketHits,
     ) -> u16 {
-        let order = self.accel.leaf_order().unwrap_or(&[]);
         each_ray_alone::<ANY_HIT>(rays, mask, t_max, found, |wr, ray, closest| {
             if ANY_HIT {
                 return self.leaf_blocks::<true>(wr, ray, first, count);
             }
             let mut t = ray.t_max;
-            self.leaf_closest::<true>(wr, ray.t_min, first, count, &mut t, order, closest)
+            self.leaf_closest::<true>(wr, ray.t_min, first, count, &mut t, closest)
         })
     }
 
@@ -942,7 +929,6 @@ impl TriangleMesh {
         found: &mut PacketHits,
         stats: &mut RayStats,
     ) -> u16 {
-        let order = self.accel.leaf_order().unwrap_or(&[]);
         let prefetch = |first| self.prefetch_block(first);
         each_ray_alone::<ANY_HIT>(rays, mask, t_max, found, |wr, ray, closest| {
             if ANY_HIT {
@@ -951,7 +937,7 @@ impl TriangleMesh {
                 });
             }
             bvh.intersect_leaves_from(ray, (node, 0), stats, prefetch, |f, c, t| {
-                self.leaf_closest::<true>(wr, ray.t_min, f, c, t, order, closest)
+                self.leaf_closest::<true>(wr, ray.t_min, f, c, t, closest)
             })
         })
     }
@@ -962,7 +948,7 @@ impl TriangleMesh {
     pub fn occluded_packets(&self, rays: &[Ray], occluded: &mut [bool], stats: &mut RayStats) {
         assert_eq!(rays.len(), occluded.len(), "one answer per ray");
         #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
-        if let Some((bvh, _)) = self.packet_bvh() {
+        if let Some(bvh) = self.packet_bvh() {
             let (mut t, mut found) = ([0.0; PACKET], PacketHits::default());
             for (rays, occluded) in rays.chunks(PACKET).zip(occluded.chunks_mut(PACKET)) {
                 // SAFETY: the processor supports AVX-512F and DQ (checked above).
