@@ -88,6 +88,13 @@ const ROBUST_FAR: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f3
 pub struct BuildSettings {
     /// SAH bins per axis (2 to 256).
     pub bins: usize,
+    /// Bin small ranges into fewer bins: a range of n primitives uses 8 + n/8 bins
+    /// where that is below `bins` (with 32 bins, ranges under 192 primitives), since
+    /// most of 32 bins stay empty under a hundred primitives yet each costs a clear and
+    /// a step of both sweeps. Embree's builders scale their bin count with the range
+    /// too (4 + n/20). On the 1.1M-triangle bunny the collapsed tree's cost rises by
+    /// 0.05 %.
+    pub scaled_bins: bool,
     /// Largest leaf.
     pub max_leaf_size: usize,
     /// Cost of a node traversal relative to a primitive test.
@@ -118,6 +125,7 @@ impl BuildSettings {
     /// Fewer bins: faster builds, slightly worse trees.
     pub const FAST: BuildSettings = BuildSettings {
         bins: 8,
+        scaled_bins: false,
         max_leaf_size: 8,
         traversal_cost: 1.0,
         cost_termination: true,
@@ -128,6 +136,7 @@ impl BuildSettings {
     /// The default.
     pub const QUALITY: BuildSettings = BuildSettings {
         bins: 32,
+        scaled_bins: true,
         max_leaf_size: 8,
         traversal_cost: 1.0,
         cost_termination: true,
@@ -139,6 +148,7 @@ impl BuildSettings {
     /// 64 primitives, then one pass of reinsertion.
     pub const HIGH: BuildSettings = BuildSettings {
         bins: 64,
+        scaled_bins: false,
         max_leaf_size: 8,
         traversal_cost: 1.0,
         cost_termination: true,
@@ -153,6 +163,7 @@ impl BuildSettings {
     /// (9.44, 1.73); 16 bins visit 9.45 nodes, 32 bins 9.41.
     pub const COURSE: BuildSettings = BuildSettings {
         bins: 12,
+        scaled_bins: false,
         max_leaf_size: 2,
         traversal_cost: 0.0,
         cost_termination: false,

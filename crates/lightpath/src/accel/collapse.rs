@@ -232,8 +232,11 @@ fn plan_split(plan: Plan, field: usize) -> usize {
 /// costs rather than from a rule such as "open the largest child".
 fn plan<const W: usize>(bvh: &Bvh) -> (Vec<AtomicU64>, Vec<AtomicU32>) {
     const { assert!(W >= 2 && W <= 8) };
-    let spans: Vec<AtomicU64> = (0..bvh.nodes.len()).map(|_| AtomicU64::new(0)).collect();
-    let plans: Vec<AtomicU32> = (0..bvh.nodes.len()).map(|_| AtomicU32::new(0)).collect();
+    let n = bvh.nodes.len();
+    let spans: Vec<AtomicU64> =
+        super::memory::collect_huge((0..n).into_par_iter().map(|_| AtomicU64::new(0)));
+    let plans: Vec<AtomicU32> =
+        super::memory::collect_huge((0..n).into_par_iter().map(|_| AtomicU32::new(0)));
     fill_plans::<W>(bvh, &spans, &plans, 0, 0);
     (spans, plans)
 }

@@ -21,6 +21,17 @@ pub(crate) fn collect_huge<T: Send>(iter: impl IndexedParallelIterator<Item = T>
     v
 }
 
+/// An empty vector with room for `capacity` elements, advised into huge pages (for a
+/// large array filled by pushes).
+pub(crate) fn with_capacity_huge<T>(capacity: usize) -> Vec<T> {
+    let mut v = Vec::with_capacity(capacity);
+    advise_huge_pages(
+        v.as_mut_ptr() as *mut u8,
+        v.capacity() * std::mem::size_of::<T>(),
+    );
+    v
+}
+
 /// Below this a buffer cannot hold an aligned huge page.
 #[cfg(target_os = "linux")]
 const HUGE_PAGE: usize = 2 << 20;

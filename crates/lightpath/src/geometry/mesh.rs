@@ -379,16 +379,12 @@ impl TriangleMesh {
             }
         }
         use rayon::prelude::*;
-        let boxes: Vec<Bounds3> = data
-            .indices
-            .par_iter()
-            .map(|t| {
-                let mut b = Bounds3::from_point(data.positions[t[0] as usize]);
-                b.expand(data.positions[t[1] as usize]);
-                b.expand(data.positions[t[2] as usize]);
-                b
-            })
-            .collect();
+        let boxes: Vec<Bounds3> = crate::accel::collect_huge(data.indices.par_iter().map(|t| {
+            let mut b = Bounds3::from_point(data.positions[t[0] as usize]);
+            b.expand(data.positions[t[1] as usize]);
+            b.expand(data.positions[t[2] as usize]);
+            b
+        }));
         let accel = Accel::build(accel, &boxes);
         let blocks = match accel.leaf_order() {
             Some(order) => pack_blocks(&data.positions, &data.indices, order),
