@@ -450,8 +450,6 @@ enum Plan {
 struct Task {
     nodes: Vec<BvhNode>,
     scratch: Scratch,
-    /// The ranges still to build.
-    stack: Vec<Pending>,
 }
 
 /// A range still to build: its primitives (`start..end` of the task's), bounds, depth
@@ -673,7 +671,7 @@ impl Builder {
         let bins = if prims.len() > PAR_BIN_SIZE {
             par = prims
                 .par_chunks(BIN_CHUNK)
-                .map(|c| self.bin_chunk(c, &binner))
+                .map(|c| self.bin_chunk(c, &binner, nb))
                 .reduce_with(Bins::merge)
                 .expect("non-empty");
             &par
@@ -834,15 +832,13 @@ impl Builder {
         depth: usize,
         task: &mut Task,
     ) -> usize {
-        let mut stack = std::mem::take(&mut task.stack);
-        stack.clear();
-        stack.push(Pending {
+        let mut stack = vec![Pending {
             start: 0,
             end: prims.len(),
             range: *range,
             depth,
             at: 0,
-        });
+        }];
         let mut max_depth = depth;
         while let Some(p) = stack.pop() {
             let part = &mut prims[p.start..p.end];
@@ -873,7 +869,6 @@ impl Builder {
                 }
             }
         }
-        task.stack = stack;
         max_depth
     }
 
@@ -889,7 +884,6 @@ impl Builder {
         let mut task = Task {
             nodes: Vec::with_capacity(2 * prims.len()),
             scratch: Scratch::new(self.bins),
-            stack: Vec::new(),
         };
         task.nodes.push(PLACEHOLDER);
         #[cfg(target_arch = "x86_64")]
@@ -949,27 +943,14 @@ impl Builder {
         self.decide(prims, range, depth, scratch)
     }
 
-    /// The bins of one chunk of a range binned in parallel.
-    fn bin_chunk(&self, prims: &[PrimRef], binner: &Binner) -> Bins {
+    /// The `bins` bins of one chunk of a range binned in parallel.
+    fn bin_chunk(&self, prims: &[PrimRef], binner: &Binner, bins: usize) -> Bins {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: `avx2` is set only where the processor has these features.
-            return unsafe { self.bin_chunk_avx2(prims, binner) };
+            return unsafe { bin_chunk_avx2(prims, binner, bins) };
         }
-        self.bin_chunk_body(prims, binner)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    unsafe fn bin_chunk_avx2(&self, prims: &[PrimRef], binner: &Binner) -> Bins {
-        self.bin_chunk_body(prims, binner)
-    }
-
-    #[inline(always)]
-    fn bin_chunk_body(&self, prims: &[PrimRef], binner: &Binner) -> Bins {
-        let mut b = Bins::new(self.bins);
-        b.add_interleaved(&mut Bins::new(self.bins), prims, binner);
-        b
+        bin_chunk_body(prims, binner, bins)
     }
 
     fn build_top(
@@ -1016,6 +997,19 @@ fn has_avx2() -> bool {
     {
         false
     }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+unsafe fn bin_chunk_avx2(prims: &[PrimRef], binner: &Binner, bins: usize) -> Bins {
+    bin_chunk_body(prims, binner, bins)
+}
+
+#[inline(always)]
+fn bin_chunk_body(prims: &[PrimRef], binner: &Binner, bins: usize) -> Bins {
+    let mut b = Bins::new(bins);
+    b.add_interleaved(&mut Bins::new(bins), prims, binner);
+    b
 }
 
 /// The axis (lane) of the lowest cost; between equal ones the first.
