@@ -10,6 +10,7 @@
 
 pub mod accel;
 pub mod camera;
+mod cpu;
 mod error;
 pub mod film;
 pub mod geometry;

@@ -403,23 +403,24 @@ impl Renderer<'_> {
         abandoned: &AtomicBool,
     ) -> Option<(Vec<Vec3>, RenderStats)> {
         #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
-        if crate::geometry::has_avx512() {
+        if crate::cpu::has_avx512() {
             // SAFETY: the processor supports AVX-512 F, VL, DQ and BW (checked above).
             return unsafe { self.render_tile_avx512(x0, y0, job, sums, abandoned) };
         }
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the processor supports AVX2 (checked on the line above).
+        if crate::cpu::has_avx2() {
+            // SAFETY: the processor has the AVX2 tier (checked on the line above).
             return unsafe { self.render_tile_avx2(x0, y0, job, sums, abandoned) };
         }
         self.render_tile_body(x0, y0, job, sums, abandoned)
     }
 
-    /// [`Renderer::render_tile`] compiled for AVX2: the path tracer and what inlines
-    /// into it run as three-operand (VEX) code. No FMA is enabled, so the image is the
+    /// [`Renderer::render_tile`] compiled for the AVX2 tier (`crate::cpu`): the path
+    /// tracer and what inlines into it run as three-operand (VEX) code. Nothing is
+    /// fused into a multiply-add that the code does not ask for, so the image is the
     /// same, bit for bit, as the baseline build's.
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     unsafe fn render_tile_avx2(
         &self,
         x0: u32,
@@ -431,12 +432,12 @@ impl Renderer<'_> {
         self.render_tile_body(x0, y0, job, sums, abandoned)
     }
 
-    /// [`Renderer::render_tile`] compiled for AVX-512 (F, VL, DQ, BW): EVEX code with 32
-    /// vector registers, a few per cent faster; still no FMA, so the image is the same
-    /// bit for bit (see [`crate::geometry::has_avx512`]). The path tracer on a scene that
+    /// [`Renderer::render_tile`] compiled for the AVX-512 tier (F, VL, DQ, BW): EVEX code
+    /// with 32 vector registers, a few per cent faster; still nothing fused, so the
+    /// image is the same bit for bit (see [`crate::cpu::has_avx512`]). The path tracer on a scene that
     /// traces packets takes [`Renderer::render_tile_wavefront`] instead.
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
-    #[target_feature(enable = "avx2,avx512f,avx512vl,avx512dq,avx512bw")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
     unsafe fn render_tile_avx512(
         &self,
         x0: u32,
@@ -473,7 +474,7 @@ impl Renderer<'_> {
     /// loop apart from the other integrators' code keeps its hot code together.)
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
     #[inline(never)]
-    #[target_feature(enable = "avx2,avx512f,avx512vl,avx512dq,avx512bw")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
     unsafe fn render_tile_wavefront(
         &self,
         pt: &PathTracer,
@@ -961,7 +962,7 @@ mod tests {
             let spp = 6;
             let l = mesh_scene(sampler, integrator, spp);
             #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
-            if crate::geometry::has_avx512() {
+            if crate::cpu::has_avx512() {
                 // The AVX-512 render tile is the one that takes packets.
                 assert!(l.scene.traces_packets());
             }

@@ -244,7 +244,7 @@ impl NodeTest for Avx2 {
         t_min: f32,
         t_max: f32,
     ) -> (u32, [f32; 8]) {
-        // SAFETY: `Avx2` is only used by traversals entered after detecting AVX2.
+        // SAFETY: `Avx2` is only used by traversals entered after detecting the AVX2 tier (`crate::cpu`).
         unsafe { avx2_test::<AXIS_PARALLEL>(node, ray, t_min, t_max) }
     }
 
@@ -260,7 +260,7 @@ impl NodeTest for Avx2 {
         sp: usize,
     ) -> usize {
         assert!(sp + 8 <= ANY_STACK, "any-hit stack overflow");
-        // SAFETY: `Avx2` is only used by traversals entered after detecting AVX2, and
+        // SAFETY: `Avx2` is only used by traversals entered after detecting the AVX2 tier (`crate::cpu`), and
         // the stores at `sp` are in bounds (asserted above).
         unsafe { avx2_push(node, mask, children, counts, sp) };
         sp + mask.count_ones() as usize
@@ -270,10 +270,10 @@ impl NodeTest for Avx2 {
 /// [`Avx2`]'s `push_hits`: the permuted stores.
 ///
 /// # Safety
-/// The processor must support AVX2, and `sp + 8 <= ANY_STACK`.
+/// The processor must have the AVX2 tier (`crate::cpu`), and `sp + 8 <= ANY_STACK`.
 #[cfg(target_arch = "x86_64")]
 #[inline]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
 unsafe fn avx2_push(
     node: &Bvh8Node,
     mask: u32,
@@ -302,7 +302,7 @@ unsafe fn avx2_push(
 
 #[cfg(target_arch = "x86_64")]
 #[inline]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
 unsafe fn avx2_test<const AXIS_PARALLEL: bool>(
     node: &Bvh8Node,
     ray: &RayLanes,
@@ -372,7 +372,7 @@ pub struct Bvh8 {
     bounds: Bounds3,
     /// The root slot: an inner node (count 0) or, for tiny inputs, a leaf.
     pub(super) root: (u32, u32),
-    /// Whether the processor has AVX2 (detected at build).
+    /// Whether the processor has the AVX2 tier (`crate::cpu`; detected at build).
     avx2: bool,
     pub build_seconds: f64,
     /// The collapse's cost of the tree: node tests and leaf tests weighted by the
@@ -410,7 +410,7 @@ impl Bvh8 {
             prim_order: tree.prim_order,
             bounds: bvh.bounds(),
             root: tree.root,
-            avx2: detect_avx2(),
+            avx2: crate::cpu::has_avx2(),
             build_seconds: 0.0,
             collapse_cost: tree.cost,
         }
@@ -622,7 +622,7 @@ impl Bvh8 {
     ) -> bool {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
-            // SAFETY: AVX2 was detected when the tree was built.
+            // SAFETY: the AVX2 tier was detected when the tree was built.
             return unsafe { self.intersect_avx2(ray, start, stats, prefetch_leaf, leaf) };
         }
         if has_zero_component(ray.direction) {
@@ -633,7 +633,7 @@ impl Bvh8 {
     }
 
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     unsafe fn intersect_avx2<P: Fn(u32), F: FnMut(u32, u32, &mut f32) -> bool>(
         &self,
         ray: &Ray,
@@ -677,7 +677,7 @@ impl Bvh8 {
     ) -> bool {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
-            // SAFETY: AVX2 was detected when the tree was built.
+            // SAFETY: the AVX2 tier was detected when the tree was built.
             return unsafe { self.occluded_avx2(ray, start, stats, prefetch_leaf, blocks) };
         }
         if has_zero_component(ray.direction) {
@@ -688,7 +688,7 @@ impl Bvh8 {
     }
 
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     unsafe fn occluded_avx2<P: Fn(u32), F: FnMut(u32, u32) -> bool>(
         &self,
         ray: &Ray,
@@ -952,7 +952,7 @@ impl Bvh8 {
         }
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
-            // SAFETY: AVX2 was detected when the tree was built.
+            // SAFETY: the AVX2 tier was detected when the tree was built.
             return unsafe {
                 self.stream_avx2::<ANY_HIT, X, P, I, F, D>(
                     rays,
@@ -975,7 +975,7 @@ impl Bvh8 {
     }
 
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     unsafe fn stream_avx2<const ANY_HIT: bool, X, P, I, F, D>(
         &self,
         rays: &[Ray],
@@ -1129,17 +1129,6 @@ impl Bvh8 {
                 return true;
             }
         }
-        false
-    }
-}
-
-fn detect_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
         false
     }
 }

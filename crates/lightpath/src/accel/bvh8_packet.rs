@@ -71,7 +71,7 @@ impl PacketLanes {
     ///
     /// # Safety
     /// The processor must support AVX-512F and DQ.
-    #[target_feature(enable = "avx512f,avx512dq")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
     pub unsafe fn new(rays: &[Ray]) -> PacketLanes {
         use std::arch::x86_64::*;
         assert!(rays.len() <= PACKET, "at most {PACKET} rays per packet");
@@ -127,10 +127,10 @@ struct PacketEntry {
 }
 
 impl Bvh8 {
-    /// Whether packet traversal runs here (the processor has AVX-512F and DQ).
+    /// Whether packet traversal runs here (the processor has the AVX-512 tier, see
+    /// `crate::cpu`).
     pub fn packets_supported() -> bool {
-        std::arch::is_x86_feature_detected!("avx512f")
-            && std::arch::is_x86_feature_detected!("avx512dq")
+        crate::cpu::has_avx512()
     }
 
     /// Closest hits of a packet: `leaf(t_max, first, count, mask)` tests the leaf at
@@ -142,7 +142,7 @@ impl Bvh8 {
     ///
     /// # Safety
     /// The processor must support AVX-512F and DQ ([`Bvh8::packets_supported`]).
-    #[target_feature(enable = "avx512f,avx512dq")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
     pub unsafe fn intersect_packet<F>(
         &self,
         lanes: &PacketLanes,
@@ -163,7 +163,7 @@ impl Bvh8 {
     ///
     /// # Safety
     /// The processor must support AVX-512F and DQ ([`Bvh8::packets_supported`]).
-    #[target_feature(enable = "avx512f,avx512dq")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
     pub unsafe fn occluded_packet<F>(
         &self,
         lanes: &PacketLanes,
@@ -181,7 +181,7 @@ impl Bvh8 {
     /// The traversal, in the variant for packets with parallel lanes where they have
     /// any.
     #[inline]
-    #[target_feature(enable = "avx512f,avx512dq")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
     unsafe fn packet_impl<const ANY_HIT: bool, F>(
         &self,
         lanes: &PacketLanes,
@@ -203,7 +203,7 @@ impl Bvh8 {
     }
 
     #[inline]
-    #[target_feature(enable = "avx512f,avx512dq")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
     unsafe fn packet_walk<const ANY_HIT: bool, const PARALLEL: bool, F>(
         &self,
         lanes: &PacketLanes,

@@ -475,7 +475,7 @@ enum Top {
 struct Builder {
     settings: BuildSettings,
     bins: usize,
-    /// Whether the processor has AVX2 (with FMA, BMI1/2, LZCNT and POPCNT): then the
+    /// Whether the processor has the AVX2 tier (`crate::cpu`): then the
     /// tasks, the large ranges' partitions and the parallel binning run in copies of
     /// the code compiled for it (see [`Builder::build_task`]). The results are the same
     /// bit for bit: the same IEEE operations in wider encodings, and no fused
@@ -982,23 +982,6 @@ impl Builder {
     }
 }
 
-/// Whether the processor runs the AVX2 copies of the build (see [`Builder::avx2`]).
-fn has_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx2")
-            && std::arch::is_x86_feature_detected!("fma")
-            && std::arch::is_x86_feature_detected!("bmi1")
-            && std::arch::is_x86_feature_detected!("bmi2")
-            && std::arch::is_x86_feature_detected!("lzcnt")
-            && std::arch::is_x86_feature_detected!("popcnt")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
-}
-
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
 unsafe fn bin_chunk_avx2(prims: &[PrimRef], binner: &Binner, bins: usize) -> Bins {
@@ -1246,7 +1229,7 @@ pub(super) fn build(
     boxes: &[Bounds3],
     settings: &BuildSettings,
 ) -> (Vec<BvhNode>, Vec<u32>, usize) {
-    build_with(boxes, settings, has_avx2())
+    build_with(boxes, settings, crate::cpu::has_avx2())
 }
 
 /// [`build`], with the AVX2 copies of the code (where the processor has them) or
@@ -1386,7 +1369,7 @@ mod tests {
     /// and many tasks.
     #[test]
     fn avx2_build_equals_the_portable_build() {
-        if !has_avx2() {
+        if !crate::cpu::has_avx2() {
             return;
         }
         let mut rng = crate::sampling::Pcg32::new(21, 4);

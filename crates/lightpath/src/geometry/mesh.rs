@@ -26,7 +26,8 @@ use glam::{Vec2, Vec3, Vec3A};
 /// ([`TriangleMesh::intersect_blocks_avx2`]): the leaf closure, which the traversal does
 /// not inline, is then itself compiled for their features (closures inherit their
 /// function's target features), with three-operand arithmetic and the 8-lane pair test
-/// inlined. No FMA is enabled, so all expansions round alike.
+/// inlined. No multiplication and addition are fused (the `crate::cpu` tiers enable
+/// FMA, but Rust never contracts on its own), so all expansions round alike.
 macro_rules! intersect_blocks {
     ($mesh:expr, $ray:expr, $stats:expr, $avx2:expr) => {{
         let (mesh, ray): (&TriangleMesh, &Ray) = ($mesh, $ray);
@@ -77,11 +78,12 @@ pub struct TriangleMesh {
     /// The triangles in the order of the accelerator's leaves, four to a SIMD block,
     /// when the accelerator hands out whole leaves (the wide BVHs); empty otherwise.
     blocks: Vec<TriangleBlock>,
-    /// Whether the processor has AVX2: a leaf's blocks are then tested two at a time as 8 lanes.
+    /// Whether the processor has the AVX2 tier (`crate::cpu`): a leaf's blocks are then
+    /// tested two at a time as 8 lanes.
     avx2: bool,
     /// Whether the processor has AVX-512 (F, VL, DQ, BW) and the compiler its target
     /// features (`lightpath_avx512`): the block queries are then compiled for it (see
-    /// [`has_avx512`]).
+    /// [`crate::cpu::has_avx512`]).
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
     avx512: bool,
     /// Triangle areas for area sampling, built the first time the mesh emits light.
@@ -245,30 +247,6 @@ fn take_nearest<T: std::ops::Index<usize, Output = f32>>(
     true
 }
 
-fn has_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
-}
-
-/// Whether code compiled for AVX-512 F, VL, DQ and BW may run: the processor has them
-/// and the compiler has their target features (`lightpath_avx512`). The same AVX2
-/// intrinsics then compile to EVEX code with 32 vector registers and mask-register
-/// compares, which traverses a few per cent faster; no fused multiply-add is enabled,
-/// so the results are bit for bit the AVX2 build's.
-#[cfg(all(target_arch = "x86_64", lightpath_avx512))]
-pub(crate) fn has_avx512() -> bool {
-    std::arch::is_x86_feature_detected!("avx512f")
-        && std::arch::is_x86_feature_detected!("avx512vl")
-        && std::arch::is_x86_feature_detected!("avx512dq")
-        && std::arch::is_x86_feature_detected!("avx512bw")
-}
-
 /// Starts loading the cache line at `p` (a hint: never faults, whatever the address).
 #[inline(always)]
 fn prefetch_line<T>(p: *const T) {
@@ -403,9 +381,9 @@ impl TriangleMesh {
             smooth,
             accel,
             blocks,
-            avx2: has_avx2(),
+            avx2: crate::cpu::has_avx2(),
             #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
-            avx512: has_avx512(),
+            avx512: crate::cpu::has_avx512(),
             area_distribution: std::sync::OnceLock::new(),
             flipped: Vec::new(),
         })
@@ -546,7 +524,7 @@ impl TriangleMesh {
             }
             #[cfg(target_arch = "x86_64")]
             if self.avx2 {
-                // SAFETY: `avx2` is set only where the processor supports AVX2.
+                // SAFETY: `avx2` is set only where the processor has the AVX2 tier.
                 return unsafe { self.intersect_blocks_avx2(ray, stats) };
             }
             return intersect_blocks!(self, ray, stats, false);
@@ -573,29 +551,29 @@ impl TriangleMesh {
 
     /// [`TriangleMesh::intersect`] over the SIMD blocks, compiled for AVX2.
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     unsafe fn intersect_blocks_avx2(&self, ray: &Ray, stats: &mut RayStats) -> Option<ShapeHit> {
         intersect_blocks!(self, ray, stats, true)
     }
 
     /// [`TriangleMesh::occluded`] over the SIMD blocks, compiled for AVX2.
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     unsafe fn occluded_blocks_avx2(&self, ray: &Ray, stats: &mut RayStats) -> bool {
         occluded_blocks!(self, ray, stats, true)
     }
 
     /// [`TriangleMesh::intersect`] over the SIMD blocks, compiled for AVX-512 (see
-    /// [`has_avx512`]).
+    /// [`crate::cpu::has_avx512`]).
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
-    #[target_feature(enable = "avx2,avx512f,avx512vl,avx512dq,avx512bw")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
     unsafe fn intersect_blocks_avx512(&self, ray: &Ray, stats: &mut RayStats) -> Option<ShapeHit> {
         intersect_blocks!(self, ray, stats, true)
     }
 
     /// [`TriangleMesh::occluded`] over the SIMD blocks, compiled for AVX-512.
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
-    #[target_feature(enable = "avx2,avx512f,avx512vl,avx512dq,avx512bw")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
     unsafe fn occluded_blocks_avx512(&self, ray: &Ray, stats: &mut RayStats) -> bool {
         occluded_blocks!(self, ray, stats, true)
     }
@@ -625,7 +603,7 @@ impl TriangleMesh {
             while b < end {
                 let last = b + 1 == end;
                 let (x, y) = (&self.blocks[b], &self.blocks[if last { b } else { b + 1 }]);
-                // SAFETY: `avx2` is set only where the processor supports AVX2.
+                // SAFETY: `avx2` is set only where the processor has the AVX2 tier.
                 let mut hits = unsafe { intersect_pair::<AVX2_CALLER>(x, y, wr, t_min, *t_max) };
                 hits.0 &= if last { 0xf } else { 0xff };
                 found |= take_nearest(b, &hits, t_max, closest);
@@ -659,7 +637,7 @@ impl TriangleMesh {
             while b < end {
                 let y = if b + 1 == end { b } else { b + 1 };
                 let (x, y) = (&self.blocks[b], &self.blocks[y]);
-                // SAFETY: `avx2` is set only where the processor supports AVX2.
+                // SAFETY: `avx2` is set only where the processor has the AVX2 tier.
                 let hits = unsafe { intersect_pair::<AVX2_CALLER>(x, y, wr, ray.t_min, ray.t_max) };
                 if hits.0 != 0 {
                     return true;
@@ -804,7 +782,7 @@ impl TriangleMesh {
     /// One packet's traversal (`rays`: at most [`PACKET`]): returns the rays hit and,
     /// for closest hits, writes their distances to `t` and their hits to `found`.
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
-    #[target_feature(enable = "avx512f,avx512dq")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
     unsafe fn packet_avx512<const ANY_HIT: bool>(
         &self,
         bvh: &crate::accel::Bvh8,
@@ -888,7 +866,7 @@ impl TriangleMesh {
     /// `first..first + count`: as [`TriangleMesh::packet_avx512`]'s leaf callback.
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
     #[inline]
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[allow(clippy::too_many_arguments)]
     unsafe fn leaf_ray_by_ray<const ANY_HIT: bool>(
         &self,
@@ -913,7 +891,7 @@ impl TriangleMesh {
     /// [`TriangleMesh::packet_avx512`]'s leaf callback.
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
     #[inline(never)]
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     #[allow(clippy::too_many_arguments)]
     unsafe fn subtree_ray_by_ray<const ANY_HIT: bool>(
         &self,
@@ -972,7 +950,7 @@ impl TriangleMesh {
             }
             #[cfg(target_arch = "x86_64")]
             if self.avx2 {
-                // SAFETY: `avx2` is set only where the processor supports AVX2.
+                // SAFETY: `avx2` is set only where the processor has the AVX2 tier.
                 return unsafe { self.occluded_blocks_avx2(ray, stats) };
             }
             return occluded_blocks!(self, ray, stats, false);

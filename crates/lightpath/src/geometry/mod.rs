@@ -21,8 +21,6 @@ pub use cuboid::Cuboid;
 pub use cylinder::Cylinder;
 pub use disk::Disk;
 pub use interaction::{SurfaceInteraction, SHADOW_EPSILON};
-#[cfg(all(target_arch = "x86_64", lightpath_avx512))]
-pub(crate) use mesh::has_avx512;
 pub use mesh::{intersect_triangle_watertight, TriangleMesh, WatertightRay};
 pub use mesh_data::MeshData;
 pub use plane::Plane;

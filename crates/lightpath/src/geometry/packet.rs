@@ -41,7 +41,7 @@ impl<'a> RayPacket<'a> {
     ///
     /// # Safety
     /// The processor must support AVX-512F and DQ.
-    #[target_feature(enable = "avx512f,avx512dq")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
     pub unsafe fn new(rays: &'a [Ray]) -> (RayPacket<'a>, [f32; PACKET]) {
         use std::arch::x86_64::*;
         // SAFETY: the caller guarantees AVX-512F and DQ; `PacketLanes::new` checks the count.
@@ -137,7 +137,7 @@ impl Default for PacketHits {
 ///
 /// # Safety
 /// The processor must support AVX-512F and DQ.
-#[target_feature(enable = "avx512f,avx512dq")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
 pub unsafe fn intersect_block<const ANY_HIT: bool, const COHERENT: bool>(
     block: &TriangleBlock,
     b: usize,

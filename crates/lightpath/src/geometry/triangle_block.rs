@@ -154,10 +154,10 @@ pub type PairHits = (u32, [f32; 8], [f32; 8], [f32; 8]);
 /// the scalar) result bit for bit.
 ///
 /// # Safety
-/// The processor must support AVX2.
+/// The processor must have the AVX2 tier (`crate::cpu`).
 #[cfg(target_arch = "x86_64")]
 #[inline]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
 pub unsafe fn intersect_pair_avx2(
     a: &TriangleBlock,
     b: &TriangleBlock,
@@ -173,7 +173,7 @@ pub unsafe fn intersect_pair_avx2(
 /// [`intersect_pair_inline`]) or not (a call to [`intersect_pair_avx2`]).
 ///
 /// # Safety
-/// The processor must support AVX2.
+/// The processor must have the AVX2 tier (`crate::cpu`).
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 pub unsafe fn intersect_pair<const AVX2_CALLER: bool>(
@@ -198,7 +198,7 @@ pub unsafe fn intersect_pair<const AVX2_CALLER: bool>(
 /// intrinsics inline there, and its lanes stay in registers.
 ///
 /// # Safety
-/// The processor must support AVX2, and the caller should be compiled for it (elsewhere
+/// The processor must have the AVX2 tier (`crate::cpu`), and the caller should be compiled for it (elsewhere
 /// each intrinsic becomes a call).
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
@@ -435,7 +435,7 @@ mod tests {
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn avx2_pairs_equal_two_blocks() {
-        if !std::arch::is_x86_feature_detected!("avx2") {
+        if !crate::cpu::has_avx2() {
             return;
         }
         let mut rng = Pcg32::new(8, 2);
@@ -461,7 +461,7 @@ mod tests {
             }
             let ray = Ray::with_range(o, d, rng.next_f32() * 0.2, 0.5 + rng.next_f32() * 3.0);
             let wr = WatertightRay::new(&ray);
-            // SAFETY: AVX2 was detected above.
+            // SAFETY: the AVX2 tier was detected above.
             let (bits, t, b1, b2) =
                 unsafe { intersect_pair_avx2(&a, &b, &wr, ray.t_min, ray.t_max) };
             for (half, block) in [a, b].iter().enumerate() {

@@ -333,7 +333,7 @@ impl DiffuseLanes {
     /// The processor must support AVX-512 F, VL, DQ and BW.
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
     #[inline(never)]
-    #[target_feature(enable = "avx2,avx512f,avx512vl,avx512dq,avx512bw")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
     pub(crate) unsafe fn run_avx512(&mut self, scene: &Scene) {
         self.run(scene)
     }
