@@ -434,8 +434,8 @@ impl Renderer<'_> {
 
     /// [`Renderer::render_tile`] compiled for the AVX-512 tier (F, VL, DQ, BW): EVEX code
     /// with 32 vector registers, a few per cent faster; still nothing fused, so the
-    /// image is the same bit for bit (see [`crate::cpu::has_avx512`]). The path tracer on a scene that
-    /// traces packets takes [`Renderer::render_tile_wavefront`] instead.
+    /// image is the same bit for bit (see [`crate::cpu::has_avx512`]). The path tracer on
+    /// a scene that traces packets takes [`Renderer::render_tile_wavefront`] instead.
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
     unsafe fn render_tile_avx512(

@@ -244,7 +244,8 @@ impl NodeTest for Avx2 {
         t_min: f32,
         t_max: f32,
     ) -> (u32, [f32; 8]) {
-        // SAFETY: `Avx2` is only used by traversals entered after detecting the AVX2 tier (`crate::cpu`).
+        // SAFETY: `Avx2` is only used by traversals entered after detecting the AVX2
+        // tier (`crate::cpu`).
         unsafe { avx2_test::<AXIS_PARALLEL>(node, ray, t_min, t_max) }
     }
 
@@ -260,8 +261,8 @@ impl NodeTest for Avx2 {
         sp: usize,
     ) -> usize {
         assert!(sp + 8 <= ANY_STACK, "any-hit stack overflow");
-        // SAFETY: `Avx2` is only used by traversals entered after detecting the AVX2 tier (`crate::cpu`), and
-        // the stores at `sp` are in bounds (asserted above).
+        // SAFETY: `Avx2` is only used by traversals entered after detecting the AVX2
+        // tier (`crate::cpu`), and the stores at `sp` are in bounds (asserted above).
         unsafe { avx2_push(node, mask, children, counts, sp) };
         sp + mask.count_ones() as usize
     }

@@ -198,8 +198,8 @@ pub unsafe fn intersect_pair<const AVX2_CALLER: bool>(
 /// intrinsics inline there, and its lanes stay in registers.
 ///
 /// # Safety
-/// The processor must have the AVX2 tier (`crate::cpu`), and the caller should be compiled for it (elsewhere
-/// each intrinsic becomes a call).
+/// The processor must have the AVX2 tier (`crate::cpu`), and the caller should be
+/// compiled for it (elsewhere each intrinsic becomes a call).
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 pub unsafe fn intersect_pair_inline(
