@@ -26,6 +26,17 @@ import tempfile
 SETS = ("primary", "random", "shadow", "diffuse")
 
 
+def speeds(traversal):
+    """Each set's median and fastest Mrays/s, one and all threads, from either tool's
+    JSON (both write the same `traversal` keys)."""
+    figures = {}
+    for v in ("st", "mt"):
+        for s in SETS:
+            figures[(v, s)] = traversal[v][s]["mrays_per_s_median"]
+            figures[("best", v, s)] = traversal[v][s]["mrays_per_s_best"]
+    return figures
+
+
 def run_embree(exe, mesh, reps, robust, out):
     cmd = [exe, "bench", mesh, "--reps", str(reps), "--build-reps", str(reps), "--out", out]
     if robust:
@@ -36,9 +47,7 @@ def run_embree(exe, mesh, reps, robust, out):
     return {
         "build_ms": d["build"]["mt"]["ms_median"],
         "bytes_per_tri": d["build"]["mt"]["bytes_per_tri"],
-        **{(v, s): d["traversal"][v][s]["mrays_per_s_median"] for v in ("st", "mt") for s in SETS},
-        **{("best", v, s): d["traversal"][v][s]["mrays_per_s_best"]
-           for v in ("st", "mt") for s in SETS},
+        **speeds(d["traversal"]),
     }
 
 
@@ -51,9 +60,7 @@ def run_lightpath(exe, mesh, rays, accel, reps, out):
     return {
         "build_ms": d["build"]["ms_median"],
         "bytes_per_tri": d["build"]["bytes_per_tri"],
-        **{(v, s): d["traversal"][v][s]["mrays_per_s_median"] for v in ("st", "mt") for s in SETS},
-        **{("best", v, s): d["traversal"][v][s]["mrays_per_s_best"]
-           for v in ("st", "mt") for s in SETS},
+        **speeds(d["traversal"]),
     }
 
 
