@@ -26,16 +26,29 @@ pub enum Filter {
     /// `max(0, 1 − |x|/radius)`: Mitsuba's `tent` (radius 1 by default).
     Tent { radius: f32 },
     /// A Gaussian of standard deviation `stddev`, cut at `radius` (Mitsuba's `gaussian`:
-    /// stddev 0.5, radius 4·stddev).
-    Gaussian { stddev: f32, radius: f32 },
+    /// stddev 0.5, radius 4·stddev). Build it with [`Filter::gaussian`] or
+    /// [`Filter::gaussian_cut`], which also fill in `edge`.
+    Gaussian {
+        stddev: f32,
+        radius: f32,
+        /// `erf(radius / (stddev·√2))`: the normal CDF's range over a pixel whose filter
+        /// the film does not cut, kept so that most samples need no `erf` of their own.
+        edge: f64,
+    },
 }
 
 impl Filter {
     /// Mitsuba's Gaussian filter for a standard deviation.
     pub fn gaussian(stddev: f32) -> Filter {
+        Filter::gaussian_cut(stddev, 4.0 * stddev)
+    }
+
+    /// A Gaussian of standard deviation `stddev` cut at `radius`.
+    pub fn gaussian_cut(stddev: f32, radius: f32) -> Filter {
         Filter::Gaussian {
             stddev,
-            radius: 4.0 * stddev,
+            radius,
+            edge: erf(radius as f64 / (stddev as f64 * std::f64::consts::SQRT_2)),
         }
     }
 
@@ -96,10 +109,16 @@ impl Filter {
                     r * (1.0 - (2.0 - 2.0 * p).max(0.0).sqrt())
                 }
             }
-            Filter::Gaussian { stddev, .. } => {
+            Filter::Gaussian {
+                stddev,
+                radius,
+                edge,
+            } => {
                 // The normal CDF is (1 + erf(x/(σ√2)))/2; invert it between lo and hi.
                 let s = stddev as f64 * std::f64::consts::SQRT_2;
-                let (a, b) = (erf(lo / s), erf(hi / s));
+                let r = radius as f64;
+                let a = if lo == -r { -edge } else { erf(lo / s) };
+                let b = if hi == r { edge } else { erf(hi / s) };
                 s * erf_inv(a + u * (b - a))
             }
         };
@@ -111,7 +130,7 @@ impl Filter {
         let f = |x: f32| match *self {
             Filter::Box => (x.abs() <= 0.5) as u32 as f32,
             Filter::Tent { radius } => (1.0 - x.abs() / radius).max(0.0),
-            Filter::Gaussian { stddev, radius } => {
+            Filter::Gaussian { stddev, radius, .. } => {
                 if x.abs() > radius {
                     0.0
                 } else {
@@ -135,10 +154,7 @@ mod tests {
             Filter::Tent { radius: 1.0 },
             Filter::Tent { radius: 1.5 },
             Filter::gaussian(0.5),
-            Filter::Gaussian {
-                stddev: 0.3,
-                radius: 0.6,
-            },
+            Filter::gaussian_cut(0.3, 0.6),
         ] {
             let r = filter.radius();
             const BINS: usize = 20;
