@@ -1,6 +1,7 @@
 """Makes the textures of the Mitsuba comparison scenes and their Mitsuba 3 references.
 
     python3 tests/mitsuba/make_references.py textures        # needs numpy + pillow
+    python3 tests/mitsuba/make_references.py curves          # the curve files
     python3 tests/mitsuba/make_references.py references VENV # needs a venv with mitsuba 3
 
 The references are rendered with Mitsuba 3.9.1 (scalar_rgb) through
@@ -14,7 +15,7 @@ import subprocess
 import sys
 
 HERE = pathlib.Path(__file__).resolve().parent
-SCENES = ["box", "materials", "lights", "plastics"]
+SCENES = ["box", "materials", "lights", "plastics", "curves"]
 SPP = 16384
 
 
@@ -37,6 +38,35 @@ def textures():
     Image.fromarray(np.round((n * 0.5 + 0.5) * 255).astype(np.uint8)).save(HERE / "bumps.png")
 
 
+def curves():
+    import math
+
+    # (No comment lines: Mitsuba's reader takes every non-empty line as a point.)
+    # Helical strands around a vertical axis, tapering from 0.045 to 0.01, 48 points
+    # each: a tuft of "hair" standing on the floor.
+    lines = []
+    for k in range(7):
+        phase = 2 * math.pi * k / 7
+        cx, cz = 0.35 * math.cos(phase), 0.35 * math.sin(phase) - 0.1
+        if lines:
+            lines.append("")
+        for i in range(48):
+            s = i / 47
+            a = phase + 5 * math.pi * s
+            x = cx + 0.12 * math.cos(a)
+            z = cz + 0.12 * math.sin(a)
+            y = 0.02 + 1.1 * s
+            r = 0.045 + (0.01 - 0.045) * s
+            lines.append(f"{x:.6f} {y:.6f} {z:.6f} {r:.6f}")
+    (HERE / "curves_helices.txt").write_text("\n".join(lines) + "\n")
+    # A zigzag wire of constant radius with sharp joints, in a unit box (the scene
+    # scales it by to_world, which moves the points but keeps the radii).
+    lines = []
+    for i in range(9):
+        lines.append(f"{i / 8:.6f} {0.15 + 0.55 * (i % 2):.6f} 0.0 0.02")
+    (HERE / "curves_wire.txt").write_text("\n".join(lines) + "\n")
+
+
 def references(venv):
     render = HERE.parents[1] / ".." / "shared" / "tools" / "mitsuba-ref" / "render.py"
     for scene in SCENES:
@@ -50,5 +80,7 @@ def references(venv):
 if __name__ == "__main__":
     if sys.argv[1] == "textures":
         textures()
+    elif sys.argv[1] == "curves":
+        curves()
     else:
         references(sys.argv[2])

@@ -13,7 +13,9 @@
 //! integrators, and the BSDFs diffuse, conductor, roughconductor (Beckmann and GGX,
 //! isotropic and anisotropic), plastic, roughplastic (Beckmann and GGX, nonlinear),
 //! one-sided diffuse seen from behind, dielectric, roughdielectric, thindielectric,
-//! blendbsdf, twosided and normalmap, with checkerboard and bitmap textures.
+//! blendbsdf, twosided and normalmap, with checkerboard and bitmap textures, and round
+//! linear curves (`linearcurve`: tapering strands, a wire with sharp joints placed by a
+//! scaling `to_world`).
 
 use lightpath::film::{Image, ImageErrors};
 use lightpath::io::{load_scene, load_scene_str, LoadOptions, LoadedScene};
@@ -97,6 +99,48 @@ fn plastics_match_mitsuba() {
 #[test]
 fn lights_match_mitsuba() {
     check("lights", 512);
+}
+
+#[test]
+fn curves_match_mitsuba() {
+    check("curves", 1024);
+}
+
+/// The curve comparison can fail: the wire's radii scaled by its `to_world` (1.6, as an
+/// instance transform would scale them; Mitsuba keeps them) is caught.
+#[test]
+fn the_curve_comparison_catches_scaled_radii() {
+    let dir = std::env::temp_dir().join(format!("lightpath-curves-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let wire = scene_path("curves").with_file_name("curves_wire.txt");
+    let scaled: String = std::fs::read_to_string(&wire)
+        .unwrap()
+        .lines()
+        .map(|l| {
+            let mut v: Vec<f32> = l.split_whitespace().map(|f| f.parse().unwrap()).collect();
+            if let Some(r) = v.get_mut(3) {
+                *r *= 1.6;
+            }
+            v.iter().map(f32::to_string).collect::<Vec<_>>().join(" ") + "\n"
+        })
+        .collect();
+    let scaled_path = dir.join("wire.txt");
+    std::fs::write(&scaled_path, scaled).unwrap();
+    let path = scene_path("curves");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let changed = text.replace(
+        r#"value="curves_wire.txt""#,
+        &format!(r#"value="{}""#, scaled_path.display()),
+    );
+    assert_ne!(changed, text);
+    let loaded = load_scene_str(&changed, &path, &LoadOptions::default()).unwrap();
+    let (rel_mse, ratio) = compare(&render(&loaded, 1024), "curves");
+    std::fs::remove_dir_all(&dir).unwrap();
+    eprintln!("curves with scaled radii: relMSE {rel_mse:.3e}, mean ratio {ratio:.4}");
+    assert!(
+        rel_mse >= MAX_REL_MSE || (ratio - 1.0).abs() >= MAX_MEAN_DEVIATION,
+        "curves with scaled radii passed: relMSE {rel_mse:.3e}, mean ratio {ratio:.4}"
+    );
 }
 
 /// The comparison can fail: the box rendered with a box filter instead of Mitsuba's

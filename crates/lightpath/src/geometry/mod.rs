@@ -3,6 +3,7 @@
 
 mod csg;
 mod cuboid;
+mod curves;
 mod cylinder;
 mod disk;
 mod interaction;
@@ -18,6 +19,7 @@ mod triangle_block;
 
 pub use csg::{Csg, CsgNode, CsgOp, Solid};
 pub use cuboid::Cuboid;
+pub use curves::LinearCurves;
 pub use cylinder::Cylinder;
 pub use disk::Disk;
 pub use interaction::{SurfaceInteraction, SHADOW_EPSILON};

@@ -1,7 +1,8 @@
 //! The closed set of shapes, dispatched by `match` in the hot path.
 
 use super::{
-    Csg, Cuboid, Cylinder, Disk, Plane, Rectangle, Sphere, SurfaceInteraction, TriangleMesh,
+    Csg, Cuboid, Cylinder, Disk, LinearCurves, Plane, Rectangle, Sphere, SurfaceInteraction,
+    TriangleMesh,
 };
 use crate::accel::RayStats;
 use crate::math::PI;
@@ -34,6 +35,7 @@ pub enum Shape {
     Cylinder(Cylinder),
     TriangleMesh(Arc<TriangleMesh>),
     Csg(Arc<Csg>),
+    LinearCurves(Arc<LinearCurves>),
 }
 
 impl Shape {
@@ -48,6 +50,7 @@ impl Shape {
             Shape::Cylinder(s) => s.bounds(),
             Shape::TriangleMesh(s) => s.bounds(),
             Shape::Csg(s) => s.bounds(),
+            Shape::LinearCurves(s) => s.bounds(),
         }
     }
 
@@ -63,6 +66,7 @@ impl Shape {
             Shape::Cylinder(s) => s.intersect(ray),
             Shape::TriangleMesh(s) => s.intersect(ray, stats),
             Shape::Csg(s) => s.intersect(ray, stats),
+            Shape::LinearCurves(s) => s.intersect(ray, stats),
         }
     }
 
@@ -72,6 +76,7 @@ impl Shape {
         match self {
             Shape::TriangleMesh(s) => s.occluded(ray, stats),
             Shape::Csg(s) => s.intersect(ray, stats).is_some(),
+            Shape::LinearCurves(s) => s.occluded(ray, stats),
             _ => self.intersect(ray, stats).is_some(),
         }
     }
@@ -87,6 +92,7 @@ impl Shape {
             Shape::Cylinder(s) => s.interaction(ray, hit),
             Shape::TriangleMesh(s) => s.interaction(ray, hit),
             Shape::Csg(s) => s.interaction(ray, hit),
+            Shape::LinearCurves(s) => s.interaction(ray, hit),
         }
     }
 
@@ -126,7 +132,7 @@ impl Shape {
         }
     }
 
-    /// Object-space surface area (infinite for the plane; NaN, unknown, for CSG).
+    /// Object-space surface area (infinite for the plane; NaN, unknown, for CSG and curves).
     pub fn area(&self) -> f32 {
         match self {
             Shape::Sphere(_) => 4.0 * PI,
@@ -142,12 +148,12 @@ impl Shape {
                 }
             }
             Shape::TriangleMesh(m) => m.area(),
-            Shape::Csg(_) => f32::NAN,
+            Shape::Csg(_) | Shape::LinearCurves(_) => f32::NAN,
         }
     }
 
     /// A point on the surface, uniform in object-space area: its interaction (object
-    /// space, `wo` along the normal) and the area density. `None` for the plane, CSG and
+    /// space, `wo` along the normal) and the area density. `None` for the plane, CSG, curves and
     /// shapes without area. `u_prim` picks a cuboid's face or a cylinder's side or cap;
     /// meshes choose their triangle with `u.x` (see [`TriangleMesh::sample_area`]).
     pub fn sample_area(&self, u_prim: f32, u: Vec2) -> Option<(SurfaceInteraction, f32)> {
@@ -168,7 +174,7 @@ impl Shape {
                     },
                 )
             }
-            Shape::Plane(_) | Shape::Csg(_) => return None,
+            Shape::Plane(_) | Shape::Csg(_) | Shape::LinearCurves(_) => return None,
             Shape::Rectangle(_) => {
                 let xy = u * 2.0 - Vec2::ONE;
                 (
@@ -270,6 +276,7 @@ impl Shape {
             Shape::Cylinder(_) => "cylinder",
             Shape::TriangleMesh(_) => "mesh",
             Shape::Csg(_) => "csg",
+            Shape::LinearCurves(_) => "curves",
         }
     }
 }

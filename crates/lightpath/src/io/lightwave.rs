@@ -61,8 +61,8 @@ use crate::camera::{
 };
 use crate::error::{Error, Result};
 use crate::geometry::{
-    Csg, CsgNode, CsgOp, Cuboid, Cylinder, Disk, Plane, Rectangle, Shape, Solid, Sphere,
-    TriangleMesh,
+    Csg, CsgNode, CsgOp, Cuboid, Cylinder, Disk, LinearCurves, Plane, Rectangle, Shape, Solid,
+    Sphere, TriangleMesh,
 };
 use crate::integrator::{
     AmbientOcclusion, Aov, AovVariable, CameraDirection, Direct, Integrator, PathTracer,
@@ -1199,10 +1199,11 @@ impl Builder {
                 }
                 let radiance = self.bsdf_slot(node, "emission", Vec3::ONE)?;
                 node.check_all_used()?;
-                if let Shape::Csg(_) = shape {
-                    return Err(
-                        node.error("a csg cannot emit light: the area of its surface is not known")
-                    );
+                if let Shape::Csg(_) | Shape::LinearCurves(_) = shape {
+                    return Err(node.error(format!(
+                        "a {} cannot emit light: its surface cannot be sampled",
+                        shape.kind_name()
+                    )));
                 }
                 if !shape.area().is_finite() {
                     return Err(node.error(format!(
@@ -1237,6 +1238,7 @@ impl Builder {
             "cube",
             "cylinder",
             "mesh",
+            "curves",
             "group",
             "csg",
         ];
@@ -1250,6 +1252,18 @@ impl Builder {
                 caps: node.bool_or("caps", false)?,
             })),
             Some("mesh") => self.mesh(node)?,
+            Some("curves") => {
+                let file = node
+                    .string("filename")
+                    .ok_or_else(|| node.error("<shape type=\"curves\"> needs a `filename`"))?;
+                let path = resolve_path(&node.location.file, &file);
+                let curves = crate::io::curves::load_curves(&path)
+                    .map_err(|e| node.error(format!("cannot load curves: {e}")))?;
+                let curves =
+                    LinearCurves::new(&curves, self.options.accel.unwrap_or(self.default_accel))
+                        .map_err(|m| node.error(format!("{}: {m}", path.display())))?;
+                Arc::new(Shape::LinearCurves(Arc::new(curves)))
+            }
             Some("group") => {
                 return Err(node.error("a group can only be placed by an <instance>"));
             }
@@ -1470,6 +1484,49 @@ mod tests {
             UVec2::new(20, 10)
         );
         assert_eq!(loaded.sampler.samples_per_pixel(), 2);
+    }
+
+    /// `<shape type="curves">` reads a curve file; the instance transform places the
+    /// curves whole (radii scale with it, as with any shape), and curves cannot emit.
+    #[test]
+    fn curves_are_placed_by_their_instance() {
+        let dir = temp_dir("curves");
+        std::fs::write(dir.join("strand.txt"), "-1 0 0 0.1\n1 0 0 0.1\n").unwrap();
+        let scene = |extra: &str| {
+            format!(
+                r#"<integrator type="normals"><scene>
+                <camera type="perspective"><integer name="width" value="8"/><integer name="height" value="8"/></camera>
+                <instance><shape type="curves" filename="strand.txt"/>{extra}
+                    <transform><scale value="2"/><translate z="5"/></transform></instance>
+                </scene><sampler type="independent" count="1"/></integrator>"#
+            )
+        };
+        std::fs::write(dir.join("a.xml"), scene("")).unwrap();
+        let loaded = crate::io::load_scene(&dir.join("a.xml"), &LoadOptions::default()).unwrap();
+        let hit = loaded
+            .scene
+            .intersect(&crate::math::Ray::new(Vec3::ZERO, Vec3::Z))
+            .unwrap();
+        assert!((hit.t - 4.8).abs() < 1e-5, "{}", hit.t);
+        assert!((hit.n - -Vec3::Z).length() < 1e-5);
+        std::fs::write(
+            dir.join("b.xml"),
+            scene(r#"<emission type="lambertian"><texture name="emission" type="constant" value="1"/></emission>"#),
+        )
+        .unwrap();
+        let e = crate::io::load_scene(&dir.join("b.xml"), &LoadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("a curves cannot emit light"), "{e}");
+        std::fs::write(dir.join("strand.txt"), "-1 0 0 0.1\n1 0 0\n").unwrap();
+        let e = crate::io::load_scene(&dir.join("a.xml"), &LoadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("strand.txt: line 2: expected four numbers"),
+            "{e}"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     /// Groups nest (two levels here), compose transforms in order (the group's own

@@ -9,8 +9,9 @@
 //! wavelength list whose values are all equal (anything else is an error naming it).
 //! `<point>`/`<vector>` may give `x y z` attributes instead of `value`.
 //!
-//! Shapes: `obj`, `ply`, `sphere`, `rectangle`, `disk`, `cube`, `cylinder`, and
-//! `shapegroup` + `instance` (each instance places every shape of its group with the
+//! Shapes: `obj`, `ply`, `sphere`, `rectangle`, `disk`, `cube`, `cylinder`,
+//! `linearcurve` (its control points moved by `to_world`, their radii kept, as Mitsuba
+//! does; see [`crate::geometry::LinearCurves`]), and `shapegroup` + `instance` (each instance places every shape of its group with the
 //! group shape's `to_world` followed by the instance's; meshes are loaded once and shared).
 //!
 //! # Unsupported plugins and `--lenient`
@@ -65,7 +66,8 @@ use crate::camera::{Camera, FovAxis, Orthographic, Perspective, ThinLens};
 use crate::error::{Error, Location, Result};
 use crate::film::Filter;
 use crate::geometry::{
-    Csg, CsgNode, CsgOp, Cuboid, Cylinder, Disk, Rectangle, Shape, Solid, Sphere, TriangleMesh,
+    Csg, CsgNode, CsgOp, Cuboid, Cylinder, Disk, LinearCurves, Rectangle, Shape, Solid, Sphere,
+    TriangleMesh,
 };
 use crate::integrator::{Aov, AovVariable, Direct, Integrator, PathTracer};
 use crate::light::{
@@ -378,6 +380,7 @@ const SHAPES: &[&str] = &[
     "disk",
     "cube",
     "cylinder",
+    "linearcurve",
     "instance",
     "shapegroup",
     "csg",
@@ -873,6 +876,24 @@ impl Builder {
         Ok(s)
     }
 
+    /// A `linearcurve`: Mitsuba moves the control points by `to_world` and keeps their
+    /// radii.
+    fn linear_curves(&mut self, node: &Node, to_world: &Transform) -> Result<Arc<Shape>> {
+        let file = node
+            .string("filename")
+            .ok_or_else(|| node.error("<shape type=\"linearcurve\"> needs a `filename`"))?;
+        let path = self.resolve_file(node, &file);
+        let curves = crate::io::curves::load_curves(&path)
+            .map_err(|e| node.error(format!("cannot load curves: {e}")))?;
+        let placed: Vec<_> = curves
+            .into_iter()
+            .map(|c| c.into_iter().map(|(p, r)| (to_world.point(p), r)).collect())
+            .collect();
+        let curves = LinearCurves::new(&placed, self.options.accel.unwrap_or_default())
+            .map_err(|m| node.error(format!("{}: {m}", path.display())))?;
+        Ok(Arc::new(Shape::LinearCurves(Arc::new(curves))))
+    }
+
     fn shape(&mut self, node: &Rc<Node>) -> Result<Instance> {
         if node.type_name.as_deref() == Some("csg") {
             self.check_children(node, &["transform", "bsdf", "shape", "string"])?;
@@ -910,12 +931,19 @@ impl Builder {
                 Arc::new(Shape::Cylinder(Cylinder { caps: false })),
                 cylinder_placement(node)?,
             ),
+            Some("linearcurve") => (self.linear_curves(node, &to_world)?, Transform::IDENTITY),
             _ => return Err(unknown_type(node, SHAPES)),
         };
         if !matches!(node.type_name.as_deref(), Some("obj" | "ply" | "csg")) {
             node.bool_or("flip_normals", false)?;
         }
-        let mut instance = Instance::new(shape, object.then(&to_world));
+        // Curves have their control points placed already (their radii stay as given).
+        let placement = if node.type_name.as_deref() == Some("linearcurve") {
+            Transform::IDENTITY
+        } else {
+            object.then(&to_world)
+        };
+        let mut instance = Instance::new(shape, placement);
         let mut material = None;
         for (_, c) in self.children(node)? {
             match c.tag.as_str() {

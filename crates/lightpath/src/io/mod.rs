@@ -1,5 +1,6 @@
 //! Input and output: scene dialects, mesh formats and image formats.
 
+pub mod curves;
 pub mod gltf;
 pub mod image;
 pub mod lightwave;

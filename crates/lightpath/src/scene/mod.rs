@@ -200,7 +200,7 @@ impl Scene {
             if let Some(e) = &inst.emission {
                 if !inst.shape.area().is_finite() {
                     return Err(format!(
-                        "a {} cannot emit light: it has no finite area",
+                        "a {} cannot emit light: it has no finite area that can be sampled",
                         inst.shape.kind_name()
                     ));
                 }
@@ -479,8 +479,8 @@ impl Scene {
     }
 
     /// Sizes and build times of the two levels: the top-level structure over instances
-    /// and the bottom-level structures of the distinct meshes (the flattened meshes
-    /// count as bottom level).
+    /// and the bottom-level structures of the distinct meshes and curves (the flattened
+    /// meshes count as bottom level).
     pub fn accel_report(&self) -> AccelReport {
         let mut seen = std::collections::HashSet::new();
         let mut r = AccelReport {
@@ -501,32 +501,48 @@ impl Scene {
             r.blas_triangles += m.mesh.triangle_count();
         }
         for (i, inst) in self.instances.iter().enumerate() {
-            if let Shape::TriangleMesh(m) = &*inst.shape {
-                if flattened[i] {
-                    continue;
+            // (bytes, build seconds, triangles) of a distinct bottom level.
+            let blas = match &*inst.shape {
+                Shape::TriangleMesh(m) if !flattened[i] => {
+                    seen.insert(Arc::as_ptr(m) as *const ()).then(|| {
+                        (
+                            m.accel_memory_bytes(),
+                            m.accel.build_seconds(),
+                            m.triangle_count(),
+                        )
+                    })
                 }
-                if seen.insert(Arc::as_ptr(m)) {
-                    r.blas_count += 1;
-                    r.blas_bytes += m.accel_memory_bytes();
-                    r.blas_build_seconds += m.accel.build_seconds();
-                    r.blas_triangles += m.triangle_count();
-                }
+                Shape::LinearCurves(c) => seen
+                    .insert(Arc::as_ptr(c) as *const ())
+                    .then(|| (c.memory_bytes(), c.build_seconds(), 0)),
+                _ => None,
+            };
+            if let Some((bytes, seconds, triangles)) = blas {
+                r.blas_count += 1;
+                r.blas_bytes += bytes;
+                r.blas_build_seconds += seconds;
+                r.blas_triangles += triangles;
             }
         }
         r
     }
 
-    /// Bytes used by the top-level structure and every distinct mesh's BLAS.
+    /// Bytes used by the top-level structure and every distinct mesh's and curve set's
+    /// BLAS.
     pub fn accel_memory_bytes(&self) -> usize {
         let mut seen = std::collections::HashSet::new();
         let mut total =
             self.tlas.memory_bytes() + self.merged.iter().map(|m| m.memory_bytes()).sum::<usize>();
         for inst in &self.instances {
-            if let Shape::TriangleMesh(m) = &*inst.shape {
-                if seen.insert(Arc::as_ptr(m)) {
-                    total += m.accel_memory_bytes();
+            total += match &*inst.shape {
+                Shape::TriangleMesh(m) if seen.insert(Arc::as_ptr(m) as *const ()) => {
+                    m.accel_memory_bytes()
                 }
-            }
+                Shape::LinearCurves(c) if seen.insert(Arc::as_ptr(c) as *const ()) => {
+                    c.memory_bytes()
+                }
+                _ => 0,
+            };
         }
         total
     }
