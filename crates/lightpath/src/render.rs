@@ -203,11 +203,13 @@ impl Schedule {
 }
 
 impl Renderer<'_> {
-    /// The camera ray of the pixel's current sample: its film position drawn from the
-    /// scene's pixel filter, then cut to the scene's near and far clip distances (along
-    /// the camera's viewing axis) when it has them.
+    /// The camera ray of the pixel's current sample and its weight (see
+    /// [`Camera::sample_ray`]): its film position drawn from the scene's pixel filter,
+    /// then the lens and lens-path samples where the camera uses them, the ray cut to the
+    /// scene's near and far clip distances (along the camera's viewing axis) when it has
+    /// them.
     #[inline(always)]
-    fn camera_ray(&self, pixel: UVec2, sampler: &mut Sampler) -> Option<Ray> {
+    fn camera_ray(&self, pixel: UVec2, sampler: &mut Sampler) -> Option<(Ray, Vec3)> {
         let film = self.scene.filter.film_position(
             pixel.as_vec2(),
             sampler.next_2d(),
@@ -218,7 +220,14 @@ impl Renderer<'_> {
         } else {
             Vec2::splat(0.5)
         };
-        let mut ray = self.camera.generate_ray(&CameraSample { film, lens })?;
+        let u_path = if self.camera.uses_path_sample() {
+            sampler.next_2d()
+        } else {
+            Vec2::splat(0.5)
+        };
+        let (mut ray, weight) = self
+            .camera
+            .sample_ray(&CameraSample { film, lens }, u_path)?;
         if let Some((near, far)) = self.scene.clip {
             let forward = self.camera.render_from_camera().vector(Vec3::Z).normalize();
             let cos = ray.direction.dot(forward);
@@ -228,7 +237,7 @@ impl Renderer<'_> {
             ray.t_min = ray.t_min.max(near / cos);
             ray.t_max = ray.t_max.min(far / cos);
         }
-        Some(ray)
+        Some((ray, weight))
     }
 
     /// Renders the image. `progress` is called with the fraction done (0 to 1) from the
@@ -508,8 +517,8 @@ impl Renderer<'_> {
         let mut slot_pixel: Vec<usize> = (0..w).collect();
         let mut next = vec![job.first; w];
         let mut next_pixel = w;
-        // Paths in flight: (slot, pixel, state), in the order they started.
-        let mut live: Vec<(usize, usize, PathState)> = Vec::with_capacity(w);
+        // Paths in flight: (slot, pixel, state, camera weight), in the order they started.
+        let mut live: Vec<(usize, usize, PathState, Vec3)> = Vec::with_capacity(w);
         let mut restart: Vec<usize> = Vec::with_capacity(w);
         let mut rays: Vec<Ray> = Vec::with_capacity(w);
         let mut hits: Vec<Option<BatchHit>> = vec![None; w];
@@ -522,7 +531,7 @@ impl Renderer<'_> {
         // tile's next pixel when its pixel is done (samples without a camera ray add the
         // integrator's value at once).
         let mut start = |s: usize,
-                         live: &mut Vec<(usize, usize, PathState)>,
+                         live: &mut Vec<(usize, usize, PathState, Vec3)>,
                          samplers: &mut [Sampler],
                          pixels: &mut [Vec3],
                          stats: &mut RenderStats| {
@@ -541,9 +550,9 @@ impl Renderer<'_> {
                 sampler.start_pixel_sample(pixel, next[s]);
                 next[s] += 1;
                 match self.camera_ray(pixel, sampler) {
-                    Some(ray) => {
+                    Some((ray, weight)) => {
                         stats.camera_rays += 1;
-                        live.push((s, k, PathState::new(&ray)));
+                        live.push((s, k, PathState::new(&ray), weight));
                         return;
                     }
                     None => add_sample(&mut pixels[k], self.integrator.no_ray_value(), stats),
@@ -560,7 +569,7 @@ impl Renderer<'_> {
             let m = live.len();
             let mut ray_stats = RayStats::default();
             rays.clear();
-            rays.extend(live.iter().map(|(_, _, path)| path.ray));
+            rays.extend(live.iter().map(|(_, _, path, _)| path.ray));
             self.scene
                 .intersect_batch(&rays, &mut hits[..m], &mut ray_stats);
             shadows.clear();
@@ -568,7 +577,7 @@ impl Renderer<'_> {
             // Each path's vertex: `PathTracer::step` in parts, with the vertices that
             // can gathered into lanes that scatter sixteen at a time.
             let lane_done = |r: LaneResult,
-                             live: &mut [(usize, usize, PathState)],
+                             live: &mut [(usize, usize, PathState, Vec3)],
                              ended: &mut [bool],
                              shadows: &mut Vec<(usize, ShadowQuery)>,
                              shadow_rays: &mut Vec<Ray>| {
@@ -580,7 +589,7 @@ impl Renderer<'_> {
                 }
             };
             for i in 0..m {
-                let (slot, _, path) = &mut live[i];
+                let (slot, _, path, _) = &mut live[i];
                 let sampler = &mut samplers[*slot];
                 let mut shadow = None;
                 let hit = hits[i].take();
@@ -622,11 +631,11 @@ impl Renderer<'_> {
             // Retire the paths that ended (the others keep their order: neighbours in the
             // list are neighbouring pixels), then start their pixels' next samples.
             let mut i = 0;
-            live.retain(|(slot, k, path)| {
+            live.retain(|(slot, k, path, weight)| {
                 let keep = !ended[i];
                 i += 1;
                 if !keep {
-                    add_sample(&mut pixels[*k], pt.finish(path), &mut stats);
+                    add_sample(&mut pixels[*k], pt.finish(path) * *weight, &mut stats);
                     restart.push(*slot);
                 }
                 keep
@@ -668,10 +677,16 @@ impl Renderer<'_> {
                 for index in job.first..job.first + job.count {
                     sampler.start_pixel_sample(pixel, index);
                     let value = match self.camera_ray(pixel, &mut sampler) {
-                        Some(ray) => {
+                        Some((ray, weight)) => {
                             stats.camera_rays += 1;
-                            self.integrator
-                                .li(self.scene, &ray, &mut sampler, &mut ray_stats)
+                            let li =
+                                self.integrator
+                                    .li(self.scene, &ray, &mut sampler, &mut ray_stats);
+                            if self.integrator.weighs_camera_rays() {
+                                li * weight
+                            } else {
+                                li
+                            }
                         }
                         None => self.integrator.no_ray_value(),
                     };
@@ -733,7 +748,7 @@ impl Renderer<'_> {
                         let (mut depth, mut hits) = (0.0f64, 0u32);
                         for index in 0..spp {
                             sampler.start_pixel_sample(pixel, index);
-                            let Some(ray) = self.camera_ray(pixel, &mut sampler) else {
+                            let Some((ray, _)) = self.camera_ray(pixel, &mut sampler) else {
                                 continue;
                             };
                             if let Some(hit) = crate::integrator::first_hit(self.scene, &ray) {
@@ -868,6 +883,12 @@ mod tests {
     /// share no edges, so that no ray meets two of them at exactly the same distance and
     /// the packet render must equal the ray-by-ray one bit for bit.
     fn mesh_scene(sampler: &str, integrator: &str, spp: u32) -> LoadedScene {
+        mesh_scene_seen_by(sampler, integrator, spp, false)
+    }
+
+    /// [`mesh_scene`], seen through a realistic camera with dispersion and flare (its
+    /// rays carry weights, and it draws two more sample dimensions) where `lens` is set.
+    fn mesh_scene_seen_by(sampler: &str, integrator: &str, spp: u32, lens: bool) -> LoadedScene {
         // A folder per call: tests run in parallel, and each removes its folder.
         static CALLS: AtomicU64 = AtomicU64::new(0);
         let dir = std::env::temp_dir().join(format!(
@@ -904,10 +925,25 @@ mod tests {
             "v -1 2.5 -1\nv 1 2.5 -1\nv 1 2.5 1\nv -1 2.5 1\nf 1 2 3\nf 1 3 4\n",
         )
         .unwrap();
+        let lens_file = dir.join("lens.dat");
+        std::fs::write(
+            &lens_file,
+            "0 3 0 16\n30 6 1.5168 20 64.17\n-17.854 2.5 1.62 20 36.37\n-72.46 45 1 20\n",
+        )
+        .unwrap();
+        let camera = if lens {
+            format!(
+                r#"<camera type="realistic"><string name="lensFile" value="{}"/>
+                    <boolean name="flare" value="true"/><float name="focusDistance" value="6"/>"#,
+                lens_file.display()
+            )
+        } else {
+            r#"<camera type="perspective">"#.to_string()
+        };
         let xml = format!(
             r#"<integrator type="{integrator}"{depth}>
                 <scene>
-                    <camera type="perspective">
+                    {camera}
                         <integer name="width" value="29"/>
                         <integer name="height" value="19"/>
                         <transform><lookat origin="0.3,-0.5,-6" target="0,0,0" up="0,1,0"/></transform>
@@ -953,14 +989,15 @@ mod tests {
     /// traced alone by `PathTracer::li`, in several passes as in one, for every sampler.
     #[test]
     fn packet_path_tracer_equals_ray_by_ray() {
-        for (sampler, integrator) in [
-            ("independent", "pathtracer"),
-            ("sobol", "pathtracer"),
-            ("halton", "pathtracer"),
-            ("sobol", "direct"),
+        for (sampler, integrator, lens) in [
+            ("independent", "pathtracer", false),
+            ("sobol", "pathtracer", false),
+            ("halton", "pathtracer", false),
+            ("sobol", "direct", false),
+            ("sobol", "pathtracer", true),
         ] {
             let spp = 6;
-            let l = mesh_scene(sampler, integrator, spp);
+            let l = mesh_scene_seen_by(sampler, integrator, spp, lens);
             #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
             if crate::cpu::has_avx512() {
                 // The AVX-512 render tile is the one that takes packets.
@@ -981,10 +1018,11 @@ mod tests {
                     let mut sum = Vec3::ZERO;
                     for index in 0..spp {
                         sampler_state.start_pixel_sample(pixel, index);
-                        if let Some(ray) = r.camera_ray(pixel, &mut sampler_state) {
+                        if let Some((ray, weight)) = r.camera_ray(pixel, &mut sampler_state) {
                             let value =
                                 r.integrator
-                                    .li(r.scene, &ray, &mut sampler_state, &mut ray_stats);
+                                    .li(r.scene, &ray, &mut sampler_state, &mut ray_stats)
+                                    * weight;
                             if value.is_finite() {
                                 sum += value;
                             }
@@ -1035,7 +1073,7 @@ mod tests {
             for i in 0..200u32 {
                 let pixel = UVec2::new(i % 29, i / 29 % 19);
                 sampler.start_pixel_sample(pixel, 0);
-                let mut ray = r.camera_ray(pixel, &mut sampler).unwrap();
+                let (mut ray, _) = r.camera_ray(pixel, &mut sampler).unwrap();
                 if i % 3 == 0 {
                     ray.t_max = 5.5;
                 }

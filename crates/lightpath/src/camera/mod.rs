@@ -7,15 +7,17 @@
 mod fisheye;
 mod orthographic;
 mod perspective;
+mod realistic;
 mod thin_lens;
 
 pub use fisheye::{Fisheye, FisheyeMapping};
 pub use orthographic::Orthographic;
 pub use perspective::Perspective;
+pub use realistic::{Realistic, RealisticOptions, LAMBDA_D};
 pub use thin_lens::{Aperture, ThinLens};
 
 use crate::math::{Ray, Transform};
-use glam::{UVec2, Vec2};
+use glam::{UVec2, Vec2, Vec3};
 
 /// Which image axis a field of view applies to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -69,6 +71,7 @@ pub enum Camera {
     Orthographic(Orthographic),
     Fisheye(Fisheye),
     ThinLens(ThinLens),
+    Realistic(Box<Realistic>),
 }
 
 impl Camera {
@@ -79,6 +82,7 @@ impl Camera {
             Camera::Orthographic(c) => c.resolution,
             Camera::Fisheye(c) => c.resolution,
             Camera::ThinLens(c) => c.pinhole.resolution,
+            Camera::Realistic(c) => c.resolution,
         }
     }
 
@@ -88,18 +92,42 @@ impl Camera {
             Camera::Orthographic(c) => &c.render_from_camera,
             Camera::Fisheye(c) => &c.render_from_camera,
             Camera::ThinLens(c) => &c.pinhole.render_from_camera,
+            Camera::Realistic(c) => &c.render_from_camera,
         }
     }
 
-    /// Whether [`CameraSample::lens`] shapes the ray (only a thin lens has an aperture to
-    /// sample); the others leave the sampler's dimensions for the path.
+    /// Whether [`CameraSample::lens`] shapes the ray (only cameras with a lens have an
+    /// aperture to sample); the others leave the sampler's dimensions for the path.
     #[inline]
     pub fn uses_lens_sample(&self) -> bool {
-        matches!(self, Camera::ThinLens(_))
+        matches!(self, Camera::ThinLens(_) | Camera::Realistic(_))
+    }
+
+    /// Whether [`Camera::sample_ray`] uses its `u_path` (a realistic camera's wavelength
+    /// and path through the lens, when it has dispersion or flare).
+    #[inline]
+    pub fn uses_path_sample(&self) -> bool {
+        match self {
+            Camera::Realistic(c) => c.uses_path_sample(),
+            _ => false,
+        }
+    }
+
+    /// The ray for a film sample and its RGB weight: 1 except for a realistic camera,
+    /// whose weight carries the lens' exposure, falloff, wavelength and path (see
+    /// [`Realistic`]). `u_path` is used where [`Camera::uses_path_sample`].
+    #[inline(always)]
+    pub fn sample_ray(&self, sample: &CameraSample, u_path: Vec2) -> Option<(Ray, Vec3)> {
+        match self {
+            Camera::Realistic(c) => c.sample_ray(sample, u_path),
+            _ => self.generate_ray(sample).map(|r| (r, Vec3::ONE)),
+        }
     }
 
     /// The ray for a film sample, in render space with a unit direction; `None` where the
-    /// camera sees nothing (outside a fisheye's image circle).
+    /// camera sees nothing (outside a fisheye's image circle, or blocked inside a lens).
+    /// A realistic camera's ray takes the middle of the path sample; renderers use
+    /// [`Camera::sample_ray`] for its weight.
     #[inline(always)]
     pub fn generate_ray(&self, sample: &CameraSample) -> Option<Ray> {
         match self {
@@ -107,6 +135,7 @@ impl Camera {
             Camera::Orthographic(c) => Some(c.generate_ray(sample)),
             Camera::Fisheye(c) => c.generate_ray(sample),
             Camera::ThinLens(c) => Some(c.generate_ray(sample)),
+            Camera::Realistic(c) => c.sample_ray(sample, Vec2::splat(0.5)).map(|r| r.0),
         }
     }
 }

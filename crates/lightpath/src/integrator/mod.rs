@@ -63,6 +63,16 @@ impl Integrator {
         }
     }
 
+    /// Whether a camera ray's weight ([`crate::camera::Camera::sample_ray`]) scales the
+    /// value: for the radiometric integrators, not for the AOVs and camera directions.
+    #[inline(always)]
+    pub fn weighs_camera_rays(&self) -> bool {
+        matches!(
+            self,
+            Integrator::AmbientOcclusion(_) | Integrator::Direct(_) | Integrator::PathTracer(_)
+        )
+    }
+
     /// The value of a pixel sample where the camera produced no ray.
     pub fn no_ray_value(&self) -> Vec3 {
         Vec3::ZERO

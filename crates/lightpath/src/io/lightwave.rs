@@ -1027,10 +1027,26 @@ impl Builder {
                         .map_err(|m| node.error(m))?,
                 )
             }
+            Some("realistic") => {
+                let names = super::lens::RealisticNames {
+                    lens_file: "lensFile",
+                    aperture_diameter: "apertureDiameter",
+                    focus_distance: "focusDistance",
+                    film_diagonal: "filmDiagonal",
+                    blade_rotation: "bladeRotation",
+                };
+                super::lens::realistic_camera(node, resolution, render_from_camera, &names)?
+            }
             _ => {
                 return Err(unknown_type(
                     node,
-                    &["perspective", "thinlens", "orthographic", "fisheye"],
+                    &[
+                        "perspective",
+                        "thinlens",
+                        "orthographic",
+                        "fisheye",
+                        "realistic",
+                    ],
                 ))
             }
         };

@@ -362,7 +362,7 @@ const IORS: &[(&str, f32)] = &[
 
 /// Mitsuba plugins this dialect reads, by element.
 const INTEGRATORS: &[&str] = &["path", "direct", "aov"];
-const SENSORS: &[&str] = &["perspective", "thinlens", "orthographic"];
+const SENSORS: &[&str] = &["perspective", "thinlens", "orthographic", "realistic"];
 const FILMS: &[&str] = &["hdrfilm"];
 const RFILTERS: &[&str] = &["box", "tent", "gaussian"];
 const SAMPLERS: &[&str] = &[
@@ -767,6 +767,16 @@ impl Builder {
                 FovAxis::X,
                 render_from_camera,
             )),
+            Some("realistic") => {
+                let names = super::lens::RealisticNames {
+                    lens_file: "lens_file",
+                    aperture_diameter: "aperture_diameter",
+                    focus_distance: "focus_distance",
+                    film_diagonal: "film_diagonal",
+                    blade_rotation: "blade_rotation",
+                };
+                super::lens::realistic_camera(node, resolution, render_from_camera, &names)?
+            }
             _ => return Err(unknown_type(node, SENSORS)),
         };
         self.check_used(node)?;

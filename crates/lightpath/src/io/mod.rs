@@ -3,6 +3,7 @@
 pub mod curves;
 pub mod gltf;
 pub mod image;
+pub mod lens;
 pub mod lightwave;
 pub mod mitsuba;
 pub mod mtl;
