@@ -47,8 +47,9 @@
 //!   equations (for an unpolarised ray; with `coated`, through a quarter-wave MgF2 layer
 //!   for 550 nm on every air-glass surface, which tints the ghosts) and transmits the
 //!   rest. A sample follows the direct path (through every surface), or with probability
-//!   1/4 a ghost path that reflects at two glass surfaces, chosen uniformly among all
-//!   pairs, drawn over the whole rear surface. Each path's weight is its throughput over
+//!   1/4 a ghost path that reflects at two glass surfaces, a pair chosen in proportion
+//!   to their reflectances at normal incidence (every pair at least a tenth of the mean
+//!   share), drawn over the whole rear surface. Each path's weight is its throughput over
 //!   its probability, so the image is the sum of the direct image (with the lens'
 //!   transmission loss) and every two-reflection ghost; paths of four and more
 //!   reflections are left out.
@@ -256,6 +257,9 @@ pub struct Realistic {
     flare: bool,
     coated: bool,
     ghosts: Vec<(usize, usize)>,
+    /// The probability of each ghost among the ghosts, and their running sum.
+    ghost_probability: Vec<f64>,
+    ghost_cdf: Vec<f64>,
     blades: Option<(u32, f64)>,
     sensor: Sensor,
 }
@@ -328,6 +332,8 @@ impl Realistic {
             flare: options.flare,
             coated: options.coated,
             ghosts: Vec::new(),
+            ghost_probability: Vec::new(),
+            ghost_cdf: Vec::new(),
             blades: options.blades,
             sensor: Sensor::new(),
         };
@@ -343,6 +349,35 @@ impl Realistic {
                 for &b in &glass[k + 1..] {
                     cam.ghosts.push((a, b));
                 }
+            }
+            // Ghosts are chosen in proportion to their two surfaces' reflectance at
+            // normal incidence (550 nm), with a floor of a tenth of the mean so that
+            // every ghost is sampled: a cemented surface's ghosts are ~100x fainter.
+            let normal_r = |i: usize| {
+                let s = &cam.interfaces[i];
+                let coated = cam.coated && (s.front.is_air() != s.back.is_air());
+                let (a, b) = (
+                    s.front.eta(COATING_DESIGN_NM),
+                    s.back.eta(COATING_DESIGN_NM),
+                );
+                reflectance(1.0, a, b, COATING_DESIGN_NM, coated)
+            };
+            let w: Vec<f64> = cam
+                .ghosts
+                .iter()
+                .map(|&(a, b)| normal_r(a) * normal_r(b))
+                .collect();
+            let floor = 0.1 * w.iter().sum::<f64>() / w.len().max(1) as f64;
+            let w: Vec<f64> = w.iter().map(|x| x.max(floor)).collect();
+            let total: f64 = w.iter().sum();
+            let mut acc = 0.0;
+            for x in &w {
+                cam.ghost_probability.push(x / total);
+                acc += x / total;
+                cam.ghost_cdf.push(acc);
+            }
+            if let Some(last) = cam.ghost_cdf.last_mut() {
+                *last = 1.0;
             }
         }
         cam.ghost_disk = cam.rear_sampling_radius();
@@ -708,12 +743,15 @@ impl Realistic {
         if u >= GHOST_PROBABILITY {
             return (LensPath::Direct, 1.0 - GHOST_PROBABILITY);
         }
-        let n = self.ghosts.len();
-        let k = ((u / GHOST_PROBABILITY * n as f64) as usize).min(n - 1);
+        let v = u / GHOST_PROBABILITY;
+        let k = self
+            .ghost_cdf
+            .partition_point(|&c| c <= v)
+            .min(self.ghosts.len() - 1);
         let (front, rear) = self.ghosts[k];
         (
             LensPath::Ghost { front, rear },
-            GHOST_PROBABILITY / n as f64,
+            GHOST_PROBABILITY * self.ghost_probability[k],
         )
     }
 
