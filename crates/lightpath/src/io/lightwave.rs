@@ -652,6 +652,7 @@ impl Builder {
             "twosided",
             "blend",
             "normalmap",
+            "hair",
         ];
         // The texture slots of the type; every <texture> child must fill one.
         let (material, slots): (Material, &[&str]) = match node.type_name.as_deref() {
@@ -748,6 +749,21 @@ impl Builder {
                     }),
                     &["baseColor", "roughness", "metallic", "specular"],
                 )
+            }
+            Some("hair") => {
+                self.check_children(node, &["texture"])?;
+                let params = crate::material::HairParameters {
+                    sigma_a: node.vec3("sigmaA")?,
+                    color: self.bsdf_optional_slot(node, "color")?,
+                    eumelanin: node.float("eumelanin")?,
+                    pheomelanin: node.float("pheomelanin")?,
+                    eta: node.float("eta")?,
+                    beta_m: node.float("betaM")?,
+                    beta_n: node.float("betaN")?,
+                    alpha: node.float("alpha")?,
+                };
+                let hair = params.build().map_err(|m| node.error(m))?;
+                (Material::Hair(hair), &["color"])
             }
             Some("twosided") => {
                 self.check_children(node, &["bsdf"])?;

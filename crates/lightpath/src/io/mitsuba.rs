@@ -400,6 +400,7 @@ const BSDFS: &[&str] = &[
     "twosided",
     "blendbsdf",
     "normalmap",
+    "hair",
 ];
 
 fn unknown_type(node: &Node, known: &[&str]) -> Error {
@@ -1509,6 +1510,20 @@ impl Builder {
                     metallic: self.slot(node, "metallic", Vec3::ZERO)?,
                     specular: self.slot(node, "specular", Vec3::splat(0.5))?,
                 })
+            }
+            Some("hair") => {
+                self.check_children(node, &["texture"])?;
+                let params = crate::material::HairParameters {
+                    sigma_a: node.vec3("sigma_a")?,
+                    color: self.optional_slot(node, "color")?,
+                    eumelanin: node.float("eumelanin")?,
+                    pheomelanin: node.float("pheomelanin")?,
+                    eta: node.float("eta")?,
+                    beta_m: node.float("beta_m")?,
+                    beta_n: node.float("beta_n")?,
+                    alpha: node.float("alpha")?,
+                };
+                Material::Hair(params.build().map_err(|m| node.error(m))?)
             }
             Some("twosided") => {
                 self.check_children(node, &["bsdf"])?;

@@ -27,6 +27,7 @@
 //! <bsdf type="twosided"><bsdf type="plastic"/></bsdf>
 //! <bsdf type="blend"><float name="weight" value="0.3"/><bsdf type="diffuse"/><bsdf type="conductor"/></bsdf>
 //! <bsdf type="normalmap"><texture name="normal" type="image" filename="n.png" linear="true"/><bsdf type="diffuse"/></bsdf>
+//! <bsdf type="hair"><float name="eumelanin" value="1.3"/></bsdf>
 //! ```
 //!
 //! Scalar parameters (roughness, metallic, ...) may be `<float>`s or textures; a texture
@@ -38,6 +39,7 @@ mod conductor;
 mod dielectric;
 mod diffuse;
 pub mod fresnel;
+mod hair;
 pub mod microfacet;
 mod normalmap;
 mod onesided;
@@ -56,6 +58,7 @@ pub use blend::Blend;
 pub use conductor::{ComplexIor, Conductor};
 pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
+pub use hair::{sigma_a_from_color, sigma_a_from_melanin, Hair, HairAbsorption, HairParameters};
 pub use normalmap::NormalMap;
 pub use onesided::OneSided;
 pub use plastic::Plastic;
@@ -103,6 +106,7 @@ pub enum Material {
     OneSided(OneSided),
     Blend(Blend),
     NormalMap(NormalMap),
+    Hair(Hair),
 }
 
 /// A frame with normal `n` whose first axis is `tangent` made orthogonal to `n`
@@ -288,6 +292,7 @@ impl Material {
             Material::OneSided(m) => m.eval(uv, wo, wi),
             Material::Blend(m) => m.eval(uv, wo, wi),
             Material::NormalMap(m) => m.eval(uv, wo, wi),
+            Material::Hair(m) => m.eval(uv, wo, wi),
         }
     }
 
@@ -321,6 +326,7 @@ impl Material {
             Material::OneSided(m) => m.pdf(uv, wo, wi),
             Material::Blend(m) => m.pdf(uv, wo, wi),
             Material::NormalMap(m) => m.pdf(uv, wo, wi),
+            Material::Hair(m) => m.pdf(uv, wo, wi),
         }
     }
 
@@ -354,6 +360,7 @@ impl Material {
             Material::OneSided(m) => m.sample(uv, wo, u_lobe, u),
             Material::Blend(m) => m.sample(uv, wo, u_lobe, u),
             Material::NormalMap(m) => m.sample(uv, wo, u_lobe, u),
+            Material::Hair(m) => m.sample(uv, wo, u_lobe, u),
         }
     }
 
@@ -376,6 +383,7 @@ impl Material {
             Material::TwoSided(m) => m.inner.albedo(uv),
             Material::OneSided(m) => m.inner.albedo(uv),
             Material::NormalMap(m) => m.inner.albedo(uv),
+            Material::Hair(m) => m.albedo(uv),
             Material::Blend(m) => {
                 let w = scalar(&m.weight, uv);
                 m.first.albedo(uv) * (1.0 - w) + m.second.albedo(uv) * w
@@ -395,7 +403,8 @@ impl Material {
             | Material::RoughConductor(_)
             | Material::Plastic(_)
             | Material::RoughPlastic(_)
-            | Material::Principled(_) => false,
+            | Material::Principled(_)
+            | Material::Hair(_) => false,
             // One-sided diffuse (Mitsuba's) without the call.
             Material::OneSided(m) if matches!(*m.inner, Material::Diffuse(_)) => false,
             Material::TwoSided(_)
