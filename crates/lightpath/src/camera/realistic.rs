@@ -557,7 +557,7 @@ impl Realistic {
             }
         }
         let best = 0.5 * (a + b);
-        if spot(self, best) <= spot(self, paraxial) {
+        if spot(self, best) < spot(self, paraxial) {
             best
         } else {
             paraxial

@@ -1872,7 +1872,7 @@ mod tests {
     #[test]
     fn lenient_turns_unsupported_plugins_into_fallbacks() {
         let xml = scene_with(
-            r#"<bsdf type="hair" id="h"><float name="eumelanin" value="1"/></bsdf>
+            r#"<bsdf type="hapke" id="h"><float name="w" value="0.5"/></bsdf>
                <shape type="sphere"><ref id="h"/><transform name="to_world"><translate z="4"/></transform></shape>
                <shape type="bezier"/>
                <emitter type="projector"/>
@@ -1881,7 +1881,7 @@ mod tests {
                    <transform name="to_world"><translate z="9"/></transform></shape>"#,
         );
         let err = load(&xml, &[]).unwrap_err().to_string();
-        assert!(err.contains("m.xml:") && err.contains("`hair`"), "{err}");
+        assert!(err.contains("m.xml:") && err.contains("`hapke`"), "{err}");
         let options = LoadOptions {
             lenient: true,
             ..Default::default()
@@ -1890,7 +1890,7 @@ mod tests {
         // The bezier curve and the projector are left out.
         assert_eq!(loaded.scene.instances.len(), 2);
         assert_eq!(loaded.scene.lights.len(), 1);
-        // The hair BSDF is a diffuse 0.5, the noise texture a constant 0.5.
+        // The Hapke BSDF is a diffuse 0.5, the noise texture a constant 0.5.
         for i in &loaded.scene.instances {
             match i.material.as_deref().map(inner) {
                 Some(Material::Diffuse(d)) => {
