@@ -84,7 +84,13 @@ impl SceneSummary {
             bounds: scene.bounds(),
             camera: scene.camera.as_ref().map(|c| {
                 let r = c.resolution();
-                (variant_name(c), r.x, r.y)
+                let kind = match c {
+                    lightpath::camera::Camera::Realistic(lens) => {
+                        format!("realistic ({})", lens.describe())
+                    }
+                    _ => variant_name(c),
+                };
+                (kind, r.x, r.y)
             }),
             integrator: variant_name(&loaded.integrator),
             sampler: variant_name(&loaded.sampler),

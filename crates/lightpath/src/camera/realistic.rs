@@ -420,6 +420,50 @@ impl Realistic {
         Some(-h * ray.d.z / ray.d.x)
     }
 
+    /// The radius of the entrance pupil (mm): the highest ray parallel to the axis, at
+    /// 587.6 nm, that passes the whole lens (bisection).
+    pub fn entrance_pupil_radius(&self) -> f64 {
+        let front = self.interfaces[0];
+        let passes = |h: f64| {
+            let mut ray = LensRay {
+                o: DVec3::new(h, 0.0, front.z - 1.0),
+                d: DVec3::Z,
+            };
+            self.trace_from_scene(&mut ray, LAMBDA_D).is_some()
+        };
+        let (mut lo, mut hi) = (0.0, front.aperture);
+        if passes(hi) {
+            return hi;
+        }
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if passes(mid) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        lo
+    }
+
+    /// A line for reports: focal length, f-number, the film's distance behind the rear
+    /// surface, and the lens' effects that are on.
+    pub fn describe(&self) -> String {
+        let f = self.effective_focal_length(LAMBDA_D).unwrap_or(f64::NAN);
+        let mut s = format!(
+            "f = {f:.1} mm, f/{:.1}, film {:.2} mm behind the lens",
+            f / (2.0 * self.entrance_pupil_radius()),
+            self.film_distance()
+        );
+        if self.spectral {
+            s += ", spectral";
+        }
+        if self.flare {
+            s += &format!(", flare ({} ghosts)", self.ghosts.len());
+        }
+        s
+    }
+
     /// Where on the axis (z, mm; the film is at 0) a paraxial ray from an axial point at
     /// `object_z` (or parallel to the axis for `None`) crosses it behind the lens.
     fn axial_image(&self, object_z: Option<f64>, lambda_nm: f64) -> Option<f64> {

@@ -60,6 +60,33 @@ fn singlet_focal_length_and_dispersion_follow_the_lensmaker_equation() {
 }
 
 #[test]
+fn the_f_number_follows_the_stop() {
+    // The singlet's stop is its first surface: the entrance pupil is the stop itself.
+    for (diameter, want) in [(None, 5.0), (Some(4.0), 2.0)] {
+        let cam = camera(
+            SINGLET,
+            UVec2::new(8, 8),
+            &RealisticOptions {
+                aperture_diameter: diameter,
+                ..Default::default()
+            },
+        );
+        assert!((cam.entrance_pupil_radius() - want).abs() < 1e-9);
+    }
+    // Behind the double doublet's front group the stop looks larger (the front achromat
+    // magnifies it): the pupil is wider than the 16 mm stop, f/3.1.
+    let cam = camera(
+        DOUBLE_DOUBLET,
+        UVec2::new(8, 8),
+        &RealisticOptions::default(),
+    );
+    let r = cam.entrance_pupil_radius();
+    assert!(r > 8.0 && r < 12.0, "{r}");
+    let d = cam.describe();
+    assert!(d.starts_with("f = 52.9 mm, f/3.1"), "{d}");
+}
+
+#[test]
 fn an_achromat_brings_blue_and_red_together() {
     let singlet = camera(SINGLET, UVec2::new(64, 64), &RealisticOptions::default());
     let doublet = camera(DOUBLET, UVec2::new(64, 64), &RealisticOptions::default());
