@@ -233,7 +233,7 @@ impl Hair {
     pub fn pdf(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> f32 {
         let o = FibreDirection::new(wo);
         let geo = self.geometry(&o);
-        let lobe = self.lobe_pdf(&o, &geo, uv);
+        let lobe = lobe_pdf(&self.attenuation(&o, &geo, self.sigma_a(uv)));
         let terms = self.lobe_terms(&o, &FibreDirection::new(wi), &geo);
         let pdf: f32 = lobe.iter().zip(terms).map(|(w, t)| w * t).sum();
         if pdf.is_finite() {
@@ -265,7 +265,8 @@ impl Hair {
     pub fn sample(&self, uv: Vec2, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         let o = FibreDirection::new(wo);
         let geo = self.geometry(&o);
-        let lobe = self.lobe_pdf(&o, &geo, uv);
+        let ap = self.attenuation(&o, &geo, self.sigma_a(uv));
+        let lobe = lobe_pdf(&ap);
         let mut uc = u_lobe;
         let mut p = 0;
         while p < P_MAX && uc >= lobe[p] {
@@ -290,11 +291,13 @@ impl Hair {
         };
         let phi_i = o.phi + dphi;
         let wi = FibreDirection::to_local(sin_theta_i, cos_theta_i, phi_i);
-        let pdf = self.pdf(uv, wo, wi);
-        if !valid_pdf(pdf) {
+        // f and the density of wi over all lobes, from one set of lobe shapes.
+        let terms = self.lobe_terms(&o, &FibreDirection::new(wi), &geo);
+        let pdf: f32 = lobe.iter().zip(terms).map(|(w, t)| w * t).sum();
+        let f: Vec3 = ap.iter().zip(terms).map(|(a, t)| *a * t).sum();
+        if !valid_pdf(pdf) || !f.is_finite() {
             return None;
         }
-        let f = self.eval(uv, wo, wi);
         Some(BsdfSample {
             wi,
             weight: f / pdf,
@@ -349,19 +352,6 @@ impl Hair {
         let a3 = a2 * f * t / (Vec3::ONE - t * f);
         [a0, a1, a2, a3]
     }
-
-    /// The probability of each lobe: its attenuation (mean over RGB) over the sum.
-    #[inline]
-    fn lobe_pdf(&self, o: &FibreDirection, geo: &FibreGeometry, uv: Vec2) -> [f32; 4] {
-        let ap = self.attenuation(o, geo, self.sigma_a(uv));
-        let w = ap.map(|a| a.element_sum() / 3.0);
-        let sum: f32 = w.iter().sum();
-        if sum > 0.0 && sum.is_finite() {
-            w.map(|x| x / sum)
-        } else {
-            [1.0, 0.0, 0.0, 0.0]
-        }
-    }
 }
 
 /// A direction in the fibre's terms: θ from the plane across the fibre (sin θ = the
@@ -407,6 +397,18 @@ struct FibreGeometry {
 #[inline]
 fn exit_azimuth(p: usize, gamma_o: f32, gamma_t: f32) -> f32 {
     2.0 * p as f32 * gamma_t - 2.0 * gamma_o + p as f32 * PI
+}
+
+/// The probability of each lobe: its attenuation (mean over RGB) over the sum.
+#[inline]
+fn lobe_pdf(ap: &[Vec3; 4]) -> [f32; 4] {
+    let w = ap.map(|a| a.element_sum() / 3.0);
+    let sum: f32 = w.iter().sum();
+    if sum > 0.0 && sum.is_finite() {
+        w.map(|x| x / sum)
+    } else {
+        [1.0, 0.0, 0.0, 0.0]
+    }
 }
 
 /// d'Eon et al.'s longitudinal scattering with variance `v` (in double precision; the
