@@ -319,11 +319,8 @@ impl Realistic {
         let mut cam = Realistic {
             resolution,
             render_from_camera,
-            interfaces: layout(
-                &surfaces,
-                surfaces.last().unwrap().thickness,
-                options.dispersion,
-            ),
+            // Placed by `focus`, then again at the film distance it finds.
+            interfaces: Vec::new(),
             film_half: DVec2::new(half * resolution.x as f64, half * resolution.y as f64),
             pupil: Vec::new(),
             ghost_disk: 0.0,
