@@ -15,7 +15,7 @@ import subprocess
 import sys
 
 HERE = pathlib.Path(__file__).resolve().parent
-SCENES = ["box", "materials", "lights", "plastics", "curves"]
+SCENES = ["box", "materials", "lights", "plastics", "curves", "bspline"]
 SPP = 16384
 
 
@@ -65,6 +65,28 @@ def curves():
     for i in range(9):
         lines.append(f"{i / 8:.6f} {0.15 + 0.55 * (i % 2):.6f} 0.0 0.02")
     (HERE / "curves_wire.txt").write_text("\n".join(lines) + "\n")
+    # B-spline strands (`bsplinecurve`): five wavy strands of 9 control points each,
+    # coarse enough that the smooth curve stands well apart from its control polygon,
+    # tapering from 0.05 to 0.006; and a thick arch of constant radius whose ends reach
+    # below the floor (Mitsuba's cubic curves are open at their ends, ours are capped, so
+    # no end is left in view with a radius that would show the difference).
+    lines = []
+    for k in range(5):
+        if lines:
+            lines.append("")
+        x0 = -0.6 + 0.3 * k
+        for i in range(9):
+            s = i / 8
+            x = x0 + 0.13 * math.sin(3.1 * math.pi * s + k)
+            z = -0.2 + 0.15 * math.cos(2.3 * math.pi * s + 2 * k)
+            y = -0.3 + 1.4 * s
+            r = 0.05 + (0.006 - 0.05) * s
+            lines.append(f"{x:.6f} {y:.6f} {z:.6f} {r:.6f}")
+    lines.append("")
+    for i in range(8):
+        a = math.pi * (i - 1) / 5
+        lines.append(f"{0.8 * math.cos(a):.6f} {0.75 * math.sin(a) - 0.12:.6f} 0.35 0.06")
+    (HERE / "bspline_strands.txt").write_text("\n".join(lines) + "\n")
 
 
 def references(venv):

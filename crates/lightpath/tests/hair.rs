@@ -30,28 +30,40 @@ fn write_curves(dir: &Path, strands: &[Vec<[f32; 4]>]) -> PathBuf {
 }
 
 /// At a hit on a strand along x, the hair BSDF's frame has the fibre (its second axis)
-/// along x and the normal across it, in both dialects.
+/// along x and the normal across it, in both dialects, on linear and B-spline curves.
 #[test]
 fn the_fibre_runs_along_the_strand() {
     let dir = scratch("frame");
-    let file = write_curves(&dir, &[vec![[-2.0, 0.0, 0.0, 0.2], [2.0, 0.0, 0.0, 0.2]]]);
-    let mitsuba = format!(
-        r#"<scene version="3.0.0">
+    let file = write_curves(
+        &dir,
+        &[vec![
+            [-4.0, 0.0, 0.0, 0.2],
+            [-2.0, 0.0, 0.0, 0.2],
+            [0.0, 0.0, 0.0, 0.2],
+            [2.0, 0.0, 0.0, 0.2],
+            [4.0, 0.0, 0.0, 0.2],
+        ]],
+    );
+    let mut scenes = Vec::new();
+    for (mitsuba_type, basis) in [("linearcurve", "linear"), ("bsplinecurve", "bspline")] {
+        scenes.push(format!(
+            r#"<scene version="3.0.0">
             <sensor type="perspective"/>
-            <shape type="linearcurve"><string name="filename" value="{}"/>
+            <shape type="{mitsuba_type}"><string name="filename" value="{}"/>
                 <bsdf type="hair"><float name="eumelanin" value="2"/><float name="beta_m" value="0.25"/></bsdf>
             </shape>
         </scene>"#,
-        file.display()
-    );
-    let lightwave = format!(
-        r#"<integrator type="pathtracer"><scene>
+            file.display()
+        ));
+        scenes.push(format!(
+            r#"<integrator type="pathtracer"><scene>
             <camera type="perspective"/>
-            <instance><shape type="curves" filename="{}"/><bsdf type="hair" eumelanin="2" betaM="0.25"/></instance>
+            <instance><shape type="curves" filename="{}" basis="{basis}"/><bsdf type="hair" eumelanin="2" betaM="0.25"/></instance>
         </scene><sampler type="independent"/></integrator>"#,
-        file.display()
-    );
-    for xml in [mitsuba, lightwave] {
+            file.display()
+        ));
+    }
+    for xml in scenes {
         let loaded = load_scene_str(&xml, Path::new("hair.xml"), &LoadOptions::default()).unwrap();
         let scene = &loaded.scene;
         for (origin, dir) in [
@@ -75,14 +87,21 @@ fn the_fibre_runs_along_the_strand() {
     }
 }
 
-/// A tangle of white hair (no absorption) under a uniform environment of radiance 1,
-/// path traced without a depth limit, renders 1 everywhere up to noise: light leaves
-/// every fibre as it came, whichever lobe (reflection, transmission through the strand,
-/// internal reflection) it takes. Light lost (a strand re-hit from inside, a sample's
-/// weight wrong) or created would show in the mean.
+/// A tangle of white hair (no absorption), as linear and as B-spline curves, under a
+/// uniform environment of radiance 1, path traced without a depth limit, renders 1
+/// everywhere up to noise: light leaves every fibre as it came, whichever lobe
+/// (reflection, transmission through the strand, internal reflection) it takes. Light
+/// lost (a strand re-hit from inside, a sample's weight wrong) or created would show in
+/// the mean.
 #[test]
 fn white_hair_in_a_furnace_renders_the_furnace() {
-    let dir = scratch("furnace");
+    for basis in ["linear", "bspline"] {
+        furnace(basis);
+    }
+}
+
+fn furnace(basis: &str) {
+    let dir = scratch(&format!("furnace-{basis}"));
     let mut strands = Vec::new();
     let mut rng = lightpath::sampling::Pcg32::new(4, 2);
     for _ in 0..150 {
@@ -103,7 +122,7 @@ fn white_hair_in_a_furnace_renders_the_furnace() {
             <camera type="perspective"><integer name="width" value="24"/><integer name="height" value="24"/>
                 <float name="fov" value="40"/><transform><translate z="-5"/></transform></camera>
             <light type="envmap"><texture type="constant" value="1"/></light>
-            <instance><shape type="curves" filename="{}"/>
+            <instance><shape type="curves" filename="{}" basis="{basis}"/>
                 <bsdf type="hair"><rgb name="sigmaA" value="0,0,0"/><float name="betaM" value="0.3"/><float name="betaN" value="0.4"/></bsdf></instance>
         </scene><sampler type="independent" count="64"/></integrator>"#,
         file.display()
@@ -137,8 +156,11 @@ fn white_hair_in_a_furnace_renders_the_furnace() {
     );
     let mean = hair.iter().sum::<f64>() / hair.len() as f64;
     let worst = hair.iter().map(|v| (v - 1.0).abs()).fold(0.0f64, f64::max);
-    eprintln!("furnace: mean {mean}, worst pixel off by {worst}");
+    eprintln!("furnace, {basis}: mean {mean}, worst pixel off by {worst}");
     // 64 samples leave about 4% noise per pixel; the mean over the hair is within 0.5%.
-    assert!((mean - 1.0).abs() < 5e-3, "mean over the hair {mean}");
-    assert!(worst < 0.35, "worst pixel off by {worst}");
+    assert!(
+        (mean - 1.0).abs() < 5e-3,
+        "{basis}: mean over the hair {mean}"
+    );
+    assert!(worst < 0.35, "{basis}: worst pixel off by {worst}");
 }

@@ -15,7 +15,8 @@
 //! one-sided diffuse seen from behind, dielectric, roughdielectric, thindielectric,
 //! blendbsdf, twosided and normalmap, with checkerboard and bitmap textures, and round
 //! linear curves (`linearcurve`: tapering strands, a wire with sharp joints placed by a
-//! scaling `to_world`).
+//! scaling `to_world`) and cubic B-spline curves (`bsplinecurve`: wavy tapering strands
+//! and a thick arch).
 
 use lightpath::film::{Image, ImageErrors};
 use lightpath::io::{load_scene, load_scene_str, LoadOptions, LoadedScene};
@@ -104,6 +105,31 @@ fn lights_match_mitsuba() {
 #[test]
 fn curves_match_mitsuba() {
     check("curves", 1024);
+}
+
+#[test]
+fn bspline_curves_match_mitsuba() {
+    check("bspline", 1024);
+}
+
+/// The B-spline comparison can fail: the same control points read as linear curves
+/// (the control polygon instead of the smooth curve) are caught.
+#[test]
+fn the_bspline_comparison_catches_the_control_polygon() {
+    let path = scene_path("bspline");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let changed = text.replace(
+        r#"<shape type="bsplinecurve">"#,
+        r#"<shape type="linearcurve">"#,
+    );
+    assert_ne!(changed, text);
+    let loaded = load_scene_str(&changed, &path, &LoadOptions::default()).unwrap();
+    let (rel_mse, ratio) = compare(&render(&loaded, 1024), "bspline");
+    eprintln!("B-splines as polygons: relMSE {rel_mse:.3e}, mean ratio {ratio:.4}");
+    assert!(
+        rel_mse >= MAX_REL_MSE || (ratio - 1.0).abs() >= MAX_MEAN_DEVIATION,
+        "B-splines as polygons passed: relMSE {rel_mse:.3e}, mean ratio {ratio:.4}"
+    );
 }
 
 /// The curve comparison can fail: the wire's radii scaled by its `to_world` (1.6, as an

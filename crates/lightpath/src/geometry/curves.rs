@@ -76,14 +76,7 @@ impl LinearCurves {
                 ));
             }
             for (k, &(p, r)) in curve.iter().enumerate() {
-                if !p.is_finite() || !r.is_finite() || r < 0.0 {
-                    return Err(format!(
-                        "curve {}, control point {}: position {p} and radius {r} must be \
-                         finite, the radius not negative",
-                        c + 1,
-                        k + 1
-                    ));
-                }
+                check_control_point(c, k, p, r)?;
                 if k + 1 < curve.len() {
                     segments.push(points.len() as u32);
                 }
@@ -147,31 +140,37 @@ impl LinearCurves {
 
     /// The closest hit within `[ray.t_min, ray.t_max]`.
     pub fn intersect(&self, ray: &Ray, stats: &mut RayStats) -> Option<ShapeHit> {
-        let mut found = None;
-        self.accel.intersect(ray, stats, |segment, t_max| {
-            let (a, ra, b, rb) = self.ends(segment);
-            match segment_hit(ray, *t_max, a, ra, b, rb) {
-                Some(h) => {
-                    *t_max = h.t as f32;
-                    found = Some(ShapeHit {
-                        t: h.t as f32,
-                        prim: segment,
-                        uv: Vec2::new(h.v as f32, 0.0),
-                    });
-                    true
-                }
-                None => false,
-            }
-        });
-        found
+        closest_segment(&self.accel, ray, stats, |segment, t_max| {
+            self.entering_hit(ray, segment, t_max)
+        })
     }
 
     /// Whether a segment blocks the ray within its range.
     pub fn occluded(&self, ray: &Ray, stats: &mut RayStats) -> bool {
         self.accel.occluded(ray, stats, |segment| {
-            let (a, ra, b, rb) = self.ends(segment);
-            segment_hit(ray, ray.t_max, a, ra, b, rb).is_some()
+            self.entering_hit(ray, segment, ray.t_max).is_some()
         })
+    }
+
+    /// The segment's entering hit, unless it lies inside a neighbouring segment of the
+    /// same curve: then the ray has entered the curve's solid before (or started inside
+    /// it, and passes through).
+    fn entering_hit(&self, ray: &Ray, segment: u32, t_max: f32) -> Option<SegmentHit> {
+        let (a, ra, b, rb) = self.ends(segment);
+        let h = segment_hit(ray, t_max, a, ra, b, rb)?;
+        let x = ray.origin.as_dvec3() + ray.direction.as_dvec3() * h.t;
+        let s = segment as usize;
+        let first = self.segments[s];
+        let inside = |n: usize| {
+            let (a, ra, b, rb) = self.ends(n as u32);
+            point_inside_round_cone(x, a, ra, b, rb)
+        };
+        if (s > 0 && self.segments[s - 1] + 1 == first && inside(s - 1))
+            || (s + 1 < self.segments.len() && self.segments[s + 1] == first + 1 && inside(s + 1))
+        {
+            return None;
+        }
+        Some(h)
     }
 
     /// The interaction at a hit: the point projected onto the sphere it lies on (centre
@@ -182,49 +181,98 @@ impl LinearCurves {
     pub fn interaction(&self, ray: &Ray, hit: &ShapeHit) -> SurfaceInteraction {
         let (a, ra, b, rb) = self.ends(hit.prim);
         let v = (hit.uv.x as f64).clamp(0.0, 1.0);
-        let centre = a + (b - a) * v;
-        let radius = ra + (rb - ra) * v;
-        let x = ray.origin.as_dvec3() + ray.direction.as_dvec3() * hit.t as f64;
-        let axis = (b - a).normalize_or_zero();
-        let out = x - centre;
-        let n = if out.length_squared() > 0.0 {
-            out.normalize()
-        } else {
-            // The hit is at the centre (a sphere of radius 0): face the ray.
-            -ray.direction.as_dvec3().normalize()
-        };
-        let p = centre + n * radius;
-        let (nf, pf) = (n.as_vec3(), p.as_vec3());
-        // Rounding p to single precision is the only error left (half an ulp per axis).
-        let p_error = gamma(4) * pf.abs();
-        let frame = if axis == DVec3::ZERO {
-            Frame::from_normal(nf)
-        } else {
-            Frame::from_normal(axis.as_vec3())
-        };
-        let mut u = nf.dot(frame.t).atan2(nf.dot(frame.s));
-        if u < 0.0 {
-            u += 2.0 * PI;
+        let along = (v + hit.prim as f64) / self.segments.len() as f64;
+        let sphere = (a + (b - a) * v, ra + (rb - ra) * v);
+        swept_sphere_interaction(ray, hit, sphere, b - a, along)
+    }
+}
+
+/// Refuses the `k`-th control point of curve `c` (both from 0) unless its position and
+/// radius are finite and the radius is not negative.
+pub(crate) fn check_control_point(c: usize, k: usize, p: Vec3, r: f32) -> Result<(), String> {
+    if !p.is_finite() || !r.is_finite() || r < 0.0 {
+        return Err(format!(
+            "curve {}, control point {}: position {p} and radius {r} must be finite, the \
+             radius not negative",
+            c + 1,
+            k + 1
+        ));
+    }
+    Ok(())
+}
+
+/// The closest of the segments' hits that `hit(segment, t_max)` finds through `accel`,
+/// as a shape hit with the position along its segment in `uv.x`.
+pub(crate) fn closest_segment(
+    accel: &Accel,
+    ray: &Ray,
+    stats: &mut RayStats,
+    mut hit: impl FnMut(u32, f32) -> Option<SegmentHit>,
+) -> Option<ShapeHit> {
+    let mut found = None;
+    accel.intersect(ray, stats, |segment, t_max| match hit(segment, *t_max) {
+        Some(h) => {
+            *t_max = h.t as f32;
+            found = Some(ShapeHit {
+                t: h.t as f32,
+                prim: segment,
+                uv: Vec2::new(h.v as f32, 0.0),
+            });
+            true
         }
-        let mut dpdu = frame.n.cross(nf) * (2.0 * PI * radius as f32);
-        if dpdu.length_squared() == 0.0 || !dpdu.is_finite() {
-            dpdu = Frame::from_normal(nf).s;
-        }
-        SurfaceInteraction {
-            p: pf,
-            p_error,
-            t: hit.t,
-            n: nf,
-            shading_n: nf,
-            dpdu,
-            uv: Vec2::new(
-                u / (2.0 * PI),
-                ((v + hit.prim as f64) / self.segments.len() as f64) as f32,
-            ),
-            wo: -ray.direction.normalize(),
-            instance: 0,
-            prim: hit.prim,
-        }
+        None => false,
+    });
+    found
+}
+
+/// The interaction at a hit on a curve's swept surface, on the sphere `(centre, radius)`
+/// of the curve whose tangent there is `tangent`: the hit point projected onto the
+/// sphere, the outward normal from its centre, `u` the angle around the tangent over 2π,
+/// `v` = `along` (the position along the curve set), `dpdu` around the tangent.
+pub(crate) fn swept_sphere_interaction(
+    ray: &Ray,
+    hit: &ShapeHit,
+    (centre, radius): (DVec3, f64),
+    tangent: DVec3,
+    along: f64,
+) -> SurfaceInteraction {
+    let x = ray.origin.as_dvec3() + ray.direction.as_dvec3() * hit.t as f64;
+    let axis = tangent.normalize_or_zero();
+    let out = x - centre;
+    let n = if out.length_squared() > 0.0 {
+        out.normalize()
+    } else {
+        // The hit is at the centre (a sphere of radius 0): face the ray.
+        -ray.direction.as_dvec3().normalize()
+    };
+    let p = centre + n * radius;
+    let (nf, pf) = (n.as_vec3(), p.as_vec3());
+    // Rounding p to single precision is the only error left (half an ulp per axis).
+    let p_error = gamma(4) * pf.abs();
+    let frame = if axis == DVec3::ZERO {
+        Frame::from_normal(nf)
+    } else {
+        Frame::from_normal(axis.as_vec3())
+    };
+    let mut u = nf.dot(frame.t).atan2(nf.dot(frame.s));
+    if u < 0.0 {
+        u += 2.0 * PI;
+    }
+    let mut dpdu = frame.n.cross(nf) * (2.0 * PI * radius as f32);
+    if dpdu.length_squared() == 0.0 || !dpdu.is_finite() {
+        dpdu = Frame::from_normal(nf).s;
+    }
+    SurfaceInteraction {
+        p: pf,
+        p_error,
+        t: hit.t,
+        n: nf,
+        shading_n: nf,
+        dpdu,
+        uv: Vec2::new(u / (2.0 * PI), along as f32),
+        wo: -ray.direction.normalize(),
+        instance: 0,
+        prim: hit.prim,
     }
 }
 
@@ -251,11 +299,40 @@ pub(crate) fn segment_hit(
 ) -> Option<SegmentHit> {
     let o = ray.origin.as_dvec3();
     let d = ray.direction.as_dvec3();
+    match round_cone_entry(o, d, ray.t_min as f64, t_max as f64, a, ra, b, rb) {
+        ConeEntry::Hit(h) => Some(h),
+        ConeEntry::Miss | ConeEntry::Inside => None,
+    }
+}
+
+/// What a ray meets of a round segment ([`round_cone_entry`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum ConeEntry {
+    /// It enters the solid within the range.
+    Hit(SegmentHit),
+    /// It does not enter it within the range.
+    Miss,
+    /// Its origin is inside the solid.
+    Inside,
+}
+
+/// [`segment_hit`] for the ray `o + t·d` in double precision, within `(t_lo, t_hi)`,
+/// telling a ray that starts inside the solid from one that misses it.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn round_cone_entry(
+    o: DVec3,
+    d: DVec3,
+    t_lo: f64,
+    t_hi: f64,
+    a: DVec3,
+    ra: f64,
+    b: DVec3,
+    rb: f64,
+) -> ConeEntry {
     let dd = d.length_squared();
     if dd == 0.0 || !dd.is_finite() {
-        return None;
+        return ConeEntry::Miss;
     }
-    let (t_lo, t_hi) = (ray.t_min as f64, t_max as f64);
     let ba = b - a;
     let l2 = ba.length_squared();
     let delta = ra - rb;
@@ -269,7 +346,7 @@ pub(crate) fn segment_hit(
         || (o - b).length_squared() < rb * rb
         || (l2 > 0.0 && d2 > 0.0 && k0 < 0.0 && (0.0..=d2).contains(&(m1 - ra * delta)));
     if inside {
-        return None;
+        return ConeEntry::Inside;
     }
     let mut best: Option<SegmentHit> = None;
     let mut take = |t: f64, v: f64| {
@@ -296,7 +373,33 @@ pub(crate) fn segment_hit(
             }
         }
     }
-    best
+    match best {
+        Some(h) => ConeEntry::Hit(h),
+        None => ConeEntry::Miss,
+    }
+}
+
+/// Whether `x` lies inside the round segment from `(a, ra)` to `(b, rb)` by more than
+/// rounding (a relative 10⁻⁷ of the squared radii; see [`round_cone_entry`] for the
+/// cone's side).
+pub(crate) fn point_inside_round_cone(x: DVec3, a: DVec3, ra: f64, b: DVec3, rb: f64) -> bool {
+    const REL: f64 = 1e-7;
+    let (xa, ba) = (x - a, b - a);
+    if xa.length_squared() - ra * ra < -REL * ra * ra
+        || (x - b).length_squared() - rb * rb < -REL * rb * rb
+    {
+        return true;
+    }
+    let l2 = ba.length_squared();
+    let delta = ra - rb;
+    let d2 = l2 - delta * delta;
+    if !(l2 > 0.0 && d2 > 0.0) {
+        return false;
+    }
+    let m1 = ba.dot(xa);
+    let k0 = d2 * xa.length_squared() - m1 * m1 + 2.0 * ra * delta * m1 - l2 * ra * ra;
+    let r = ra.max(rb);
+    k0 < -REL * d2 * r * r && (0.0..=d2).contains(&(m1 - ra * delta))
 }
 
 /// The entering root of the sphere `(c, r)` along `o + t·d` (`dd = d·d`), in the stable

@@ -2,6 +2,7 @@
 //! and the surface interactions they produce.
 
 mod csg;
+mod cubic_curves;
 mod cuboid;
 mod curves;
 mod cylinder;
@@ -18,6 +19,7 @@ mod sphere;
 mod triangle_block;
 
 pub use csg::{Csg, CsgNode, CsgOp, Solid};
+pub use cubic_curves::{CubicBasis, CubicCurves};
 pub use cuboid::Cuboid;
 pub use curves::LinearCurves;
 pub use cylinder::Cylinder;

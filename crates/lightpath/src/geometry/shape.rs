@@ -1,8 +1,8 @@
 //! The closed set of shapes, dispatched by `match` in the hot path.
 
 use super::{
-    Csg, Cuboid, Cylinder, Disk, LinearCurves, Plane, Rectangle, Sphere, SurfaceInteraction,
-    TriangleMesh,
+    Csg, CubicCurves, Cuboid, Cylinder, Disk, LinearCurves, Plane, Rectangle, Sphere,
+    SurfaceInteraction, TriangleMesh,
 };
 use crate::accel::RayStats;
 use crate::math::PI;
@@ -36,6 +36,7 @@ pub enum Shape {
     TriangleMesh(Arc<TriangleMesh>),
     Csg(Arc<Csg>),
     LinearCurves(Arc<LinearCurves>),
+    CubicCurves(Arc<CubicCurves>),
 }
 
 impl Shape {
@@ -51,6 +52,7 @@ impl Shape {
             Shape::TriangleMesh(s) => s.bounds(),
             Shape::Csg(s) => s.bounds(),
             Shape::LinearCurves(s) => s.bounds(),
+            Shape::CubicCurves(s) => s.bounds(),
         }
     }
 
@@ -67,6 +69,7 @@ impl Shape {
             Shape::TriangleMesh(s) => s.intersect(ray, stats),
             Shape::Csg(s) => s.intersect(ray, stats),
             Shape::LinearCurves(s) => s.intersect(ray, stats),
+            Shape::CubicCurves(s) => s.intersect(ray, stats),
         }
     }
 
@@ -77,6 +80,7 @@ impl Shape {
             Shape::TriangleMesh(s) => s.occluded(ray, stats),
             Shape::Csg(s) => s.intersect(ray, stats).is_some(),
             Shape::LinearCurves(s) => s.occluded(ray, stats),
+            Shape::CubicCurves(s) => s.occluded(ray, stats),
             _ => self.intersect(ray, stats).is_some(),
         }
     }
@@ -93,6 +97,7 @@ impl Shape {
             Shape::TriangleMesh(s) => s.interaction(ray, hit),
             Shape::Csg(s) => s.interaction(ray, hit),
             Shape::LinearCurves(s) => s.interaction(ray, hit),
+            Shape::CubicCurves(s) => s.interaction(ray, hit),
         }
     }
 
@@ -148,7 +153,7 @@ impl Shape {
                 }
             }
             Shape::TriangleMesh(m) => m.area(),
-            Shape::Csg(_) | Shape::LinearCurves(_) => f32::NAN,
+            Shape::Csg(_) | Shape::LinearCurves(_) | Shape::CubicCurves(_) => f32::NAN,
         }
     }
 
@@ -174,7 +179,9 @@ impl Shape {
                     },
                 )
             }
-            Shape::Plane(_) | Shape::Csg(_) | Shape::LinearCurves(_) => return None,
+            Shape::Plane(_) | Shape::Csg(_) | Shape::LinearCurves(_) | Shape::CubicCurves(_) => {
+                return None
+            }
             Shape::Rectangle(_) => {
                 let xy = u * 2.0 - Vec2::ONE;
                 (
@@ -277,6 +284,7 @@ impl Shape {
             Shape::TriangleMesh(_) => "mesh",
             Shape::Csg(_) => "csg",
             Shape::LinearCurves(_) => "curves",
+            Shape::CubicCurves(_) => "cubic curves",
         }
     }
 }

@@ -1,6 +1,7 @@
-//! Curve files as Mitsuba 3's `linearcurve` reads them: one control point per line,
+//! Curve files as Mitsuba 3's `linearcurve` and `bsplinecurve` read them: one control point per line,
 //! `x y z radius` (whitespace-separated), and an empty line before each new curve.
-//! Lines starting with `#` are comments. A curve needs at least two control points.
+//! Lines starting with `#` are comments. A curve needs at least two control points, or
+//! what its cubic basis needs ([`CubicBasis::check_count`]).
 //!
 //! ```text
 //! # a straight strand and a tapering one
@@ -13,34 +14,48 @@
 //! ```
 
 use crate::error::{Error, Result};
+use crate::geometry::CubicBasis;
 use glam::Vec3;
 use std::path::Path;
 
 /// A curve: its control points, each a position and a radius.
 pub type CurvePoints = Vec<(Vec3, f32)>;
 
-/// Reads a curve file (see the module notes).
-pub fn load_curves(path: &Path) -> Result<Vec<CurvePoints>> {
+/// Reads a curve file (see the module notes) for linear segments (`basis` `None`) or
+/// cubic ones in the given basis.
+pub fn load_curves(path: &Path, basis: Option<CubicBasis>) -> Result<Vec<CurvePoints>> {
     let text = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     let text = String::from_utf8(text)
         .map_err(|_| Error::mesh(path, "a curve file must be text (UTF-8)"))?;
-    parse_curves(&text).map_err(|m| Error::mesh(path, m))
+    parse_curves(&text, basis).map_err(|m| Error::mesh(path, m))
 }
 
-/// Parses the text of a curve file; errors name the line.
-pub fn parse_curves(text: &str) -> std::result::Result<Vec<CurvePoints>, String> {
+/// Parses the text of a curve file; errors name the line. Each curve must have as many
+/// control points as `basis` needs (two or more for linear segments).
+pub fn parse_curves(
+    text: &str,
+    basis: Option<CubicBasis>,
+) -> std::result::Result<Vec<CurvePoints>, String> {
     let mut curves: Vec<CurvePoints> = Vec::new();
     let mut current: CurvePoints = Vec::new();
     let mut first_line = 0;
     let mut finish = |current: &mut CurvePoints, first_line: usize| {
-        if current.len() == 1 {
-            return Err(format!(
-                "line {first_line}: a curve needs at least two control points, this one has one"
-            ));
+        if current.is_empty() {
+            return Ok(());
         }
-        if !current.is_empty() {
-            curves.push(std::mem::take(current));
+        match basis {
+            None if current.len() == 1 => {
+                return Err(format!(
+                    "line {first_line}: a curve needs at least two control points, this one \
+                     has one"
+                ))
+            }
+            None => {}
+            Some(b) => b
+                .check_count(current.len())
+                .map_err(|m| format!("line {first_line}: {m}"))?,
         }
+        curves.push(std::mem::take(current));
         Ok(())
     };
     for (i, line) in text.lines().enumerate() {
@@ -93,6 +108,7 @@ mod tests {
         let c = parse_curves(
             "-1.0 0.1 0.1 0.5\n 1.0 1.4 1.2 0.5\n\n# second\n-1.0 5.0 2.2 1\n-2.3 4.0 2.3 2\n\
              4.0 1.0 2.2 5\r\n4.0 0.0 2.3 6\n\n\n",
+            None,
         )
         .unwrap();
         assert_eq!(c.len(), 2);
@@ -114,8 +130,27 @@ mod tests {
             ("0 0 0 1\n1 1 nan 1\n", "line 2: `nan` is not a finite"),
             ("\n# nothing\n", "no control points"),
         ] {
-            let e = parse_curves(text).unwrap_err();
+            let e = parse_curves(text, None).unwrap_err();
             assert!(e.contains(expected), "{text:?}: {e}");
         }
+    }
+
+    #[test]
+    fn cubic_bases_check_their_counts() {
+        let four = "0 0 0 1\n1 0 0 1\n2 0 0 1\n3 0 0 1\n";
+        let three = "\n0 0 0 1\n1 0 0 1\n2 0 0 1\n";
+        let five = "0 0 0 1\n1 0 0 1\n2 0 0 1\n3 0 0 1\n4 0 0 1\n";
+        for basis in [
+            CubicBasis::BSpline,
+            CubicBasis::Bezier,
+            CubicBasis::CatmullRom,
+        ] {
+            assert_eq!(parse_curves(four, Some(basis)).unwrap()[0].len(), 4);
+            let e = parse_curves(&format!("{four}{three}"), Some(basis)).unwrap_err();
+            assert!(e.starts_with("line 6: a "), "{basis:?}: {e}");
+        }
+        assert!(parse_curves(five, Some(CubicBasis::BSpline)).is_ok());
+        let e = parse_curves(five, Some(CubicBasis::Bezier)).unwrap_err();
+        assert!(e.contains("line 1: a Bézier curve needs 3k + 1"), "{e}");
     }
 }

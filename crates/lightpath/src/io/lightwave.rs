@@ -61,8 +61,8 @@ use crate::camera::{
 };
 use crate::error::{Error, Result};
 use crate::geometry::{
-    Csg, CsgNode, CsgOp, Cuboid, Cylinder, Disk, LinearCurves, Plane, Rectangle, Shape, Solid,
-    Sphere, TriangleMesh,
+    Csg, CsgNode, CsgOp, CubicBasis, CubicCurves, Cuboid, Cylinder, Disk, LinearCurves, Plane,
+    Rectangle, Shape, Solid, Sphere, TriangleMesh,
 };
 use crate::integrator::{
     AmbientOcclusion, Aov, AovVariable, CameraDirection, Direct, Integrator, PathTracer,
@@ -1231,7 +1231,7 @@ impl Builder {
                 }
                 let radiance = self.bsdf_slot(node, "emission", Vec3::ONE)?;
                 node.check_all_used()?;
-                if let Shape::Csg(_) | Shape::LinearCurves(_) = shape {
+                if let Shape::Csg(_) | Shape::LinearCurves(_) | Shape::CubicCurves(_) = shape {
                     return Err(node.error(format!(
                         "a {} cannot emit light: its surface cannot be sampled",
                         shape.kind_name()
@@ -1289,12 +1289,27 @@ impl Builder {
                     .string("filename")
                     .ok_or_else(|| node.error("<shape type=\"curves\"> needs a `filename`"))?;
                 let path = resolve_path(&node.location.file, &file);
-                let curves = crate::io::curves::load_curves(&path)
+                let basis = match node.string("basis").as_deref() {
+                    None | Some("linear") => None,
+                    Some(name) => Some(CubicBasis::from_name(name).ok_or_else(|| {
+                        node.error(format!(
+                            "unknown curve basis `{name}`; expected linear, bspline, bezier \
+                             or catmullrom"
+                        ))
+                    })?),
+                };
+                let curves = crate::io::curves::load_curves(&path, basis)
                     .map_err(|e| node.error(format!("cannot load curves: {e}")))?;
-                let curves =
-                    LinearCurves::new(&curves, self.options.accel.unwrap_or(self.default_accel))
-                        .map_err(|m| node.error(format!("{}: {m}", path.display())))?;
-                Arc::new(Shape::LinearCurves(Arc::new(curves)))
+                let accel = self.options.accel.unwrap_or(self.default_accel);
+                let shape =
+                    match basis {
+                        None => LinearCurves::new(&curves, accel)
+                            .map(|c| Shape::LinearCurves(Arc::new(c))),
+                        Some(b) => CubicCurves::new(&curves, b, accel)
+                            .map(|c| Shape::CubicCurves(Arc::new(c))),
+                    }
+                    .map_err(|m| node.error(format!("{}: {m}", path.display())))?;
+                Arc::new(shape)
             }
             Some("group") => {
                 return Err(node.error("a group can only be placed by an <instance>"));
@@ -1518,8 +1533,9 @@ mod tests {
         assert_eq!(loaded.sampler.samples_per_pixel(), 2);
     }
 
-    /// `<shape type="curves">` reads a curve file; the instance transform places the
-    /// curves whole (radii scale with it, as with any shape), and curves cannot emit.
+    /// `<shape type="curves">` reads a curve file, linear or in a cubic `basis`; the
+    /// instance transform places the curves whole (radii scale with it, as with any
+    /// shape), and curves cannot emit.
     #[test]
     fn curves_are_placed_by_their_instance() {
         let dir = temp_dir("curves");
@@ -1558,6 +1574,43 @@ mod tests {
             e.contains("strand.txt: line 2: expected four numbers"),
             "{e}"
         );
+        // Cubic bases: a straight B-spline of evenly spaced points runs from the second
+        // point to the last but one, and a wrong count or basis name is refused.
+        std::fs::write(
+            dir.join("strand.txt"),
+            "-2 0 0 0.1\n-1 0 0 0.1\n0 0 0 0.1\n1 0 0 0.1\n2 0 0 0.1\n",
+        )
+        .unwrap();
+        let cubic = |basis: &str| {
+            scene("").replace(
+                r#"filename="strand.txt"/>"#,
+                &format!(r#"filename="strand.txt" basis="{basis}"/>"#),
+            )
+        };
+        std::fs::write(dir.join("c.xml"), cubic("bspline")).unwrap();
+        let loaded = crate::io::load_scene(&dir.join("c.xml"), &LoadOptions::default()).unwrap();
+        let hit = |x: f32| {
+            loaded
+                .scene
+                .intersect(&crate::math::Ray::new(Vec3::new(x, 0.0, 0.0), Vec3::Z))
+        };
+        assert!((hit(0.0).unwrap().t - 4.8).abs() < 1e-5);
+        // The curve ends at x = ±1 (±2 after the scale), capped by spheres of radius 0.2.
+        assert!((hit(2.1).unwrap().t - (5.0 - (0.04f32 - 0.01).sqrt())).abs() < 1e-4);
+        assert!(hit(2.25).is_none());
+        for (basis, expected) in [
+            (
+                "bezier",
+                "strand.txt: line 1: a Bézier curve needs 3k + 1 control points",
+            ),
+            ("hermite", "unknown curve basis `hermite`"),
+        ] {
+            std::fs::write(dir.join("d.xml"), cubic(basis)).unwrap();
+            let e = crate::io::load_scene(&dir.join("d.xml"), &LoadOptions::default())
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(expected), "{basis}: {e}");
+        }
         let _ = std::fs::remove_dir_all(&dir);
     }
 

@@ -10,8 +10,9 @@
 //! `<point>`/`<vector>` may give `x y z` attributes instead of `value`.
 //!
 //! Shapes: `obj`, `ply`, `sphere`, `rectangle`, `disk`, `cube`, `cylinder`,
-//! `linearcurve` (its control points moved by `to_world`, their radii kept, as Mitsuba
-//! does; see [`crate::geometry::LinearCurves`]), and `shapegroup` + `instance` (each instance places every shape of its group with the
+//! `linearcurve` and `bsplinecurve` (their control points moved by `to_world`, their
+//! radii kept, as Mitsuba does; see [`crate::geometry::LinearCurves`] and
+//! [`crate::geometry::CubicCurves`]), and `shapegroup` + `instance` (each instance places every shape of its group with the
 //! group shape's `to_world` followed by the instance's; meshes are loaded once and shared).
 //!
 //! # Unsupported plugins and `--lenient`
@@ -66,8 +67,8 @@ use crate::camera::{Camera, FovAxis, Orthographic, Perspective, ThinLens};
 use crate::error::{Error, Location, Result};
 use crate::film::Filter;
 use crate::geometry::{
-    Csg, CsgNode, CsgOp, Cuboid, Cylinder, Disk, LinearCurves, Rectangle, Shape, Solid, Sphere,
-    TriangleMesh,
+    Csg, CsgNode, CsgOp, CubicBasis, CubicCurves, Cuboid, Cylinder, Disk, LinearCurves, Rectangle,
+    Shape, Solid, Sphere, TriangleMesh,
 };
 use crate::integrator::{Aov, AovVariable, Direct, Integrator, PathTracer};
 use crate::light::{
@@ -381,6 +382,7 @@ const SHAPES: &[&str] = &[
     "cube",
     "cylinder",
     "linearcurve",
+    "bsplinecurve",
     "instance",
     "shapegroup",
     "csg",
@@ -887,22 +889,34 @@ impl Builder {
         Ok(s)
     }
 
-    /// A `linearcurve`: Mitsuba moves the control points by `to_world` and keeps their
-    /// radii.
-    fn linear_curves(&mut self, node: &Node, to_world: &Transform) -> Result<Arc<Shape>> {
-        let file = node
-            .string("filename")
-            .ok_or_else(|| node.error("<shape type=\"linearcurve\"> needs a `filename`"))?;
+    /// A `linearcurve` (`basis` `None`) or `bsplinecurve`: Mitsuba moves the control
+    /// points by `to_world` and keeps their radii.
+    fn curves(
+        &mut self,
+        node: &Node,
+        to_world: &Transform,
+        basis: Option<CubicBasis>,
+    ) -> Result<Arc<Shape>> {
+        let file = node.string("filename").ok_or_else(|| {
+            node.error(format!(
+                "<shape type=\"{}\"> needs a `filename`",
+                node.type_name.as_deref().unwrap_or("")
+            ))
+        })?;
         let path = self.resolve_file(node, &file);
-        let curves = crate::io::curves::load_curves(&path)
+        let curves = crate::io::curves::load_curves(&path, basis)
             .map_err(|e| node.error(format!("cannot load curves: {e}")))?;
         let placed: Vec<_> = curves
             .into_iter()
             .map(|c| c.into_iter().map(|(p, r)| (to_world.point(p), r)).collect())
             .collect();
-        let curves = LinearCurves::new(&placed, self.options.accel.unwrap_or_default())
-            .map_err(|m| node.error(format!("{}: {m}", path.display())))?;
-        Ok(Arc::new(Shape::LinearCurves(Arc::new(curves))))
+        let accel = self.options.accel.unwrap_or_default();
+        let shape = match basis {
+            None => LinearCurves::new(&placed, accel).map(|c| Shape::LinearCurves(Arc::new(c))),
+            Some(b) => CubicCurves::new(&placed, b, accel).map(|c| Shape::CubicCurves(Arc::new(c))),
+        }
+        .map_err(|m| node.error(format!("{}: {m}", path.display())))?;
+        Ok(Arc::new(shape))
     }
 
     fn shape(&mut self, node: &Rc<Node>) -> Result<Instance> {
@@ -942,14 +956,21 @@ impl Builder {
                 Arc::new(Shape::Cylinder(Cylinder { caps: false })),
                 cylinder_placement(node)?,
             ),
-            Some("linearcurve") => (self.linear_curves(node, &to_world)?, Transform::IDENTITY),
+            Some("linearcurve") => (self.curves(node, &to_world, None)?, Transform::IDENTITY),
+            Some("bsplinecurve") => (
+                self.curves(node, &to_world, Some(CubicBasis::BSpline))?,
+                Transform::IDENTITY,
+            ),
             _ => return Err(unknown_type(node, SHAPES)),
         };
         if !matches!(node.type_name.as_deref(), Some("obj" | "ply" | "csg")) {
             node.bool_or("flip_normals", false)?;
         }
         // Curves have their control points placed already (their radii stay as given).
-        let placement = if node.type_name.as_deref() == Some("linearcurve") {
+        let placement = if matches!(
+            node.type_name.as_deref(),
+            Some("linearcurve" | "bsplinecurve")
+        ) {
             Transform::IDENTITY
         } else {
             object.then(&to_world)

@@ -515,6 +515,9 @@ impl Scene {
                 Shape::LinearCurves(c) => seen
                     .insert(Arc::as_ptr(c) as *const ())
                     .then(|| (c.memory_bytes(), c.build_seconds(), 0)),
+                Shape::CubicCurves(c) => seen
+                    .insert(Arc::as_ptr(c) as *const ())
+                    .then(|| (c.memory_bytes(), c.build_seconds(), 0)),
                 _ => None,
             };
             if let Some((bytes, seconds, triangles)) = blas {
@@ -539,6 +542,9 @@ impl Scene {
                     m.accel_memory_bytes()
                 }
                 Shape::LinearCurves(c) if seen.insert(Arc::as_ptr(c) as *const ()) => {
+                    c.memory_bytes()
+                }
+                Shape::CubicCurves(c) if seen.insert(Arc::as_ptr(c) as *const ()) => {
                     c.memory_bytes()
                 }
                 _ => 0,

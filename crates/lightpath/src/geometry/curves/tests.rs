@@ -149,6 +149,19 @@ fn rays_from_inside_pass_through() {
             .is_none());
         assert!(!c.occluded(&Ray::new(Vec3::new(0.5, 0.0, 0.0), d), stats));
     }
+    // Along a curve of several segments: a ray from inside passes the joints too.
+    let chain: Vec<(Vec3, f32)> = (0..6).map(|i| (Vec3::X * i as f32, 0.3)).collect();
+    let chain = LinearCurves::new(&[chain], AccelKind::Bvh8).unwrap();
+    for d in [Vec3::X, -Vec3::X, Vec3::new(1.0, 0.05, -0.02)] {
+        let ray = Ray::new(Vec3::new(1.5, 0.0, 0.0), d);
+        assert!(chain.intersect(&ray, stats).is_none(), "{d}");
+        assert!(!chain.occluded(&ray, stats), "{d}");
+    }
+    // From outside, a ray straight at a joint hits it.
+    let h = chain
+        .intersect(&Ray::new(Vec3::new(2.0, 0.0, -1.0), Vec3::Z), stats)
+        .unwrap();
+    assert!((h.t - 0.7).abs() < 1e-6, "{}", h.t);
     // From outside: the cap at x = −0.5 and, past the end, nothing behind.
     let h = c
         .intersect(&Ray::new(Vec3::new(-3.0, 0.0, 0.0), Vec3::X), stats)
