@@ -32,6 +32,8 @@ use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
+mod flare;
+
 /// Tile edge length in pixels.
 pub const TILE_SIZE: u32 = 16;
 
@@ -299,6 +301,10 @@ impl Renderer<'_> {
         let start = Instant::now();
         let deadline = schedule.budget.map(|b| start + b);
         let mut sums = vec![Vec3::ZERO; res.x as usize * res.y as usize];
+        // Light-traced ghosts, summed apart so that every sum adds in sample order
+        // whatever the passes are.
+        let flare = self.light_traced_flare();
+        let mut flare_sums = vec![Vec3::ZERO; if flare.is_some() { sums.len() } else { 0 }];
         let mut image = Image::new(res.x, res.y);
         let mut stats = RenderStats::default();
         let (mut done, mut passes) = (0u32, 0u32);
@@ -320,9 +326,12 @@ impl Renderer<'_> {
                 base: stats,
                 progress,
             };
-            let Some(pass_stats) = self.render_pass(&job, &mut sums) else {
+            let Some(mut pass_stats) = self.render_pass(&job, &mut sums) else {
                 break; // abandoned at the deadline
             };
+            if let Some(camera) = flare {
+                pass_stats.add(&self.add_flare(camera, done, size, &mut flare_sums));
+            }
             done += size;
             passes += 1;
             stats.add(&pass_stats);
@@ -331,6 +340,9 @@ impl Renderer<'_> {
             let scale = done as f32;
             for (p, s) in image.pixels.iter_mut().zip(&sums) {
                 *p = *s / scale;
+            }
+            for (p, f) in image.pixels.iter_mut().zip(&flare_sums) {
+                *p += *f / scale;
             }
             let last = schedule.next(done, start.elapsed(), seconds_per_spp) == 0;
             let pass = Pass {
@@ -400,6 +412,20 @@ impl Renderer<'_> {
             stats.add(&s);
         }
         Some(stats)
+    }
+
+    /// The realistic camera whose ghosts are traced from the lights, for the radiometric
+    /// integrators ([`flare`]); `None` where there is nothing to trace.
+    fn light_traced_flare(&self) -> Option<&crate::camera::Realistic> {
+        match self.camera {
+            Camera::Realistic(camera)
+                if camera.traces_ghosts_from_lights()
+                    && self.integrator.path_tracer().is_some() =>
+            {
+                Some(camera)
+            }
+            _ => None,
+        }
     }
 
     /// The new sums of a tile's pixels; `None` once the pass is abandoned.
@@ -883,12 +909,17 @@ mod tests {
     /// share no edges, so that no ray meets two of them at exactly the same distance and
     /// the packet render must equal the ray-by-ray one bit for bit.
     fn mesh_scene(sampler: &str, integrator: &str, spp: u32) -> LoadedScene {
-        mesh_scene_seen_by(sampler, integrator, spp, false)
+        mesh_scene_seen_by(sampler, integrator, spp, None)
     }
 
     /// [`mesh_scene`], seen through a realistic camera with dispersion and flare (its
     /// rays carry weights, and it draws two more sample dimensions) where `lens` is set.
-    fn mesh_scene_seen_by(sampler: &str, integrator: &str, spp: u32, lens: bool) -> LoadedScene {
+    fn mesh_scene_seen_by(
+        sampler: &str,
+        integrator: &str,
+        spp: u32,
+        flare_sampling: Option<&str>,
+    ) -> LoadedScene {
         // A folder per call: tests run in parallel, and each removes its folder.
         static CALLS: AtomicU64 = AtomicU64::new(0);
         let dir = std::env::temp_dir().join(format!(
@@ -931,10 +962,11 @@ mod tests {
             "0 3 0 16\n30 6 1.5168 20 64.17\n-17.854 2.5 1.62 20 36.37\n-72.46 45 1 20\n",
         )
         .unwrap();
-        let camera = if lens {
+        let camera = if let Some(flare_sampling) = flare_sampling {
             format!(
                 r#"<camera type="realistic"><string name="lensFile" value="{}"/>
-                    <boolean name="flare" value="true"/><float name="focusDistance" value="6"/>"#,
+                    <boolean name="flare" value="true"/><float name="focusDistance" value="6"/>
+                    <string name="flareSampling" value="{flare_sampling}"/>"#,
                 lens_file.display()
             )
         } else {
@@ -990,11 +1022,12 @@ mod tests {
     #[test]
     fn packet_path_tracer_equals_ray_by_ray() {
         for (sampler, integrator, lens) in [
-            ("independent", "pathtracer", false),
-            ("sobol", "pathtracer", false),
-            ("halton", "pathtracer", false),
-            ("sobol", "direct", false),
-            ("sobol", "pathtracer", true),
+            ("independent", "pathtracer", None),
+            ("sobol", "pathtracer", None),
+            ("halton", "pathtracer", None),
+            ("sobol", "direct", None),
+            // Ghosts found by camera rays (light-traced ghosts are not camera paths).
+            ("sobol", "pathtracer", Some("camera")),
         ] {
             let spp = 6;
             let l = mesh_scene_seen_by(sampler, integrator, spp, lens);
@@ -1041,22 +1074,45 @@ mod tests {
             assert!(want.pixels.iter().any(|p| p.x > 0.0), "the scene is lit");
             assert_eq!(bits(&image), bits(&want), "{sampler} {integrator}");
             assert_eq!(stats.rays, rays, "{sampler} {integrator}");
-            let out = r
-                .render_progressive(
-                    &RenderControl {
-                        max_spp: Some(spp),
-                        ..Default::default()
-                    },
-                    &mut |_| ControlFlow::Continue(()),
-                )
-                .unwrap();
-            assert!(out.passes > 1);
+            let out = in_passes(&r, spp);
             assert_eq!(
                 bits(&out.image),
                 bits(&want),
                 "{sampler} {integrator}, in passes"
             );
         }
+    }
+
+    /// The progressive render of `spp` samples per pixel, in more than one pass.
+    fn in_passes(r: &Renderer, spp: u32) -> Rendered {
+        let out = r
+            .render_progressive(
+                &RenderControl {
+                    max_spp: Some(spp),
+                    ..Default::default()
+                },
+                &mut |_| ControlFlow::Continue(()),
+            )
+            .unwrap();
+        assert!(out.passes > 1);
+        out
+    }
+
+    /// Light-traced lens flare adds to the image, and the image is the same, bit for bit,
+    /// rendered in one pass or in several.
+    #[test]
+    fn light_traced_flare_is_the_same_in_passes() {
+        let spp = 6;
+        let l = mesh_scene_seen_by("sobol", "pathtracer", spp, Some("light"));
+        let r = renderer(&l);
+        let (image, stats) = r.render(&|_| {}).unwrap();
+        let out = in_passes(&r, spp);
+        assert_eq!(bits(&out.image), bits(&image));
+        assert_eq!(out.stats.rays, stats.rays);
+        // Without the flare: less light, and fewer rays.
+        let camera = mesh_scene_seen_by("sobol", "pathtracer", spp, Some("camera"));
+        let (_, camera_stats) = renderer(&camera).render(&|_| {}).unwrap();
+        assert!(stats.shadow_rays > camera_stats.shadow_rays);
     }
 
     /// The scene's batch queries answer as its ray-by-ray ones, on a scene of analytic

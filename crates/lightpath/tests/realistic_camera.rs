@@ -225,6 +225,14 @@ fn scene_errors_name_the_place() {
         e.contains("scene.xml:2") && e.contains("stop of 16 mm"),
         "{e}"
     );
+    let e = err(&camera(&format!(
+        r#"<string name="lensFile" value="{}"/><string name="flareSampling" value="film"/>"#,
+        lens("achromat.50mm.dat")
+    )));
+    assert!(
+        e.contains("scene.xml:2") && e.contains("`flareSampling` must be `light` or `camera`"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -248,4 +256,86 @@ fn mitsuba_scenes_take_a_realistic_sensor() {
     };
     assert!(cam.uses_path_sample());
     assert_eq!(cam.resolution, glam::UVec2::new(32, 24));
+}
+
+/// Ghosts traced from the light (the default) against ghosts found by camera rays:
+/// the same image, in the ghosts' light away from the light's own image (8×8-pixel
+/// blocks and the sum over them). A bright sphere off the axis and an uncoated lens,
+/// so that the camera rays' ghosts converge at a sample count a test can afford; the
+/// light-traced ghosts are the nearly noise-free ones.
+#[test]
+fn ghosts_from_the_lights_match_ghosts_from_the_camera() {
+    let scene = |sampling: &str, spp: u32| {
+        format!(
+            r#"<integrator type="direct"><scene>
+                <camera type="realistic"><integer name="width" value="48"/><integer name="height" value="32"/>
+                    <string name="lensFile" value="{}"/><float name="focusDistance" value="4"/>
+                    <boolean name="flare" value="true"/><boolean name="coated" value="false"/>
+                    <boolean name="dispersion" value="false"/>
+                    <string name="flareSampling" value="{sampling}"/></camera>
+                <instance><shape type="sphere"/>
+                    <emission type="lambertian"><texture name="emission" type="constant" value="40"/></emission>
+                    <bsdf type="diffuse"><texture name="albedo" type="constant" value="0"/></bsdf>
+                    <transform><scale value="0.25"/><translate x="0.8" y="-0.45" z="4"/></transform>
+                </instance>
+            </scene><sampler type="independent" count="{spp}"/></integrator>"#,
+            lens("double-doublet.50mm.dat")
+        )
+    };
+    let camera = render(&load(&scene("camera", 16384)));
+    let light = render(&load(&scene("light", 256)));
+    // The light's own image: pixels brighter than 1 in either render, grown by 3.
+    let (w, h) = (camera.width, camera.height);
+    let bright = |x: u32, y: u32| {
+        let mut b = false;
+        for dy in -3i32..=3 {
+            for dx in -3i32..=3 {
+                let (xx, yy) = (x as i32 + dx, y as i32 + dy);
+                if xx >= 0 && yy >= 0 && (xx as u32) < w && (yy as u32) < h {
+                    b |= camera.get(xx as u32, yy as u32).y > 1.0
+                        || light.get(xx as u32, yy as u32).y > 1.0;
+                }
+            }
+        }
+        b
+    };
+    let mut blocks = Vec::new();
+    let (mut sum_c, mut sum_l) = (0.0f64, 0.0f64);
+    for by in 0..h / 8 {
+        for bx in 0..w / 8 {
+            let (mut c, mut l, mut n) = (0.0f64, 0.0f64, 0);
+            for y in by * 8..by * 8 + 8 {
+                for x in bx * 8..bx * 8 + 8 {
+                    if !bright(x, y) {
+                        let (a, b) = (camera.get(x, y), light.get(x, y));
+                        c += (a.x + a.y + a.z) as f64;
+                        l += (b.x + b.y + b.z) as f64;
+                        n += 1;
+                    }
+                }
+            }
+            if n > 32 {
+                blocks.push((bx, by, c, l));
+                sum_c += c;
+                sum_l += l;
+            }
+        }
+    }
+    eprintln!("ghost light: camera {sum_c:.4}, light {sum_l:.4}");
+    assert!(
+        sum_c > 0.0 && blocks.len() > 12,
+        "{sum_c} over {} blocks",
+        blocks.len()
+    );
+    // Camera rays leave about 3% noise per block at this count.
+    for (bx, by, c, l) in &blocks {
+        assert!(
+            (l / c - 1.0).abs() < 0.12,
+            "block ({bx}, {by}): light {l} against camera {c}"
+        );
+    }
+    assert!(
+        (sum_l / sum_c - 1.0).abs() < 0.025,
+        "ghost light {sum_l} against {sum_c}"
+    );
 }

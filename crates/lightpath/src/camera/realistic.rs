@@ -13,6 +13,7 @@
 //!     <float name="filmDiagonal" value="35"/>       <!-- mm -->
 //!     <boolean name="dispersion" value="true"/>     <!-- chromatic aberration -->
 //!     <boolean name="flare" value="true"/>          <!-- ghosts -->
+//!     <string name="flareSampling" value="light"/>  <!-- or "camera" -->
 //!     <boolean name="coated" value="true"/>         <!-- MgF2 anti-reflection coating -->
 //!     <integer name="blades" value="6"/>            <!-- a polygonal stop -->
 //!     <transform><lookat origin="0,1,-4" target="0,1,0"/></transform>
@@ -46,13 +47,21 @@
 //! - **Flare.** With `flare`, each surface reflects part of the light by the Fresnel
 //!   equations (for an unpolarised ray; with `coated`, through a quarter-wave MgF2 layer
 //!   for 550 nm on every air-glass surface, which tints the ghosts) and transmits the
-//!   rest. A sample follows the direct path (through every surface), or with probability
-//!   1/4 a ghost path that reflects at two glass surfaces, a pair chosen in proportion
-//!   to their reflectances at normal incidence (every pair at least a tenth of the mean
-//!   share), drawn over the whole rear surface. Each path's weight is its throughput over
-//!   its probability, so the image is the sum of the direct image (with the lens'
-//!   transmission loss) and every two-reflection ghost; paths of four and more
-//!   reflections are left out.
+//!   rest. The image is the sum of the direct image (with the lens' transmission loss)
+//!   and every two-reflection ghost; paths of four and more reflections are left out. A
+//!   ghost reflects at two glass surfaces, a pair chosen in proportion to their
+//!   reflectances at normal incidence (every pair at least a tenth of the mean share),
+//!   and is found one of two ways (`flareSampling`):
+//!   - `light` (the default): camera rays take the direct path only, and the renderer
+//!     traces light paths ([`Realistic::ghost_splat`], driven by `render::flare`): a
+//!     point on a disk of the front vertex plane, a light sampled from it, the ghost path
+//!     backwards through the lens to the film, splatted into the pixel it lands in.
+//!     The lens conserves étendue, so the camera rays' measure cos⁴θ·dA_rear/d²·dA_film
+//!     is cos θ·dω·dA_front on the scene side, and the weight is the camera estimate's
+//!     turned around. Nearly free of noise; ghosts of lit surfaces are left out.
+//!   - `camera`: a camera sample follows, with probability 1/4, a ghost path drawn over
+//!     the whole rear surface, weighted by its throughput over its probability. It
+//!     finds every ghost, but rare paths make them converge slowly.
 
 use super::{normalized_film, CameraSample};
 use crate::error::{Error, Result};
@@ -96,6 +105,32 @@ pub struct RealisticOptions {
     pub coated: bool,
     /// A polygonal stop: blade count and rotation (radians).
     pub blades: Option<(u32, f64)>,
+    /// How ghost paths are sampled (with `flare`).
+    pub flare_sampling: FlareSampling,
+}
+
+/// Where a realistic camera's ghost paths start (see the module notes).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum FlareSampling {
+    /// From the lights, through the lens to the film ([`Realistic::ghost_splat`]): the
+    /// ghosts of every emitter (also outside the frame), without noise to speak of;
+    /// ghosts of lit surfaces are left out.
+    #[default]
+    Light,
+    /// From the film, by camera rays: the ghosts of everything in front of the lens, lit
+    /// surfaces too, but noisy where a small light makes them.
+    Camera,
+}
+
+impl FlareSampling {
+    /// The sampling a scene names (`light` or `camera`).
+    pub fn from_name(name: &str) -> Option<FlareSampling> {
+        match name {
+            "light" => Some(FlareSampling::Light),
+            "camera" => Some(FlareSampling::Camera),
+            _ => None,
+        }
+    }
 }
 
 impl Default for RealisticOptions {
@@ -108,6 +143,7 @@ impl Default for RealisticOptions {
             flare: false,
             coated: true,
             blades: None,
+            flare_sampling: FlareSampling::Light,
         }
     }
 }
@@ -250,6 +286,9 @@ pub struct Realistic {
     pupil: Vec<[f64; 4]>,
     /// Radius of the disk on the rear vertex plane that ghost rays are drawn from.
     ghost_disk: f64,
+    /// Radius of the disk on the front vertex plane that light-traced ghosts enter by.
+    front_disk: f64,
+    flare_sampling: FlareSampling,
     /// 1 / the mean irradiance weight at the film's centre.
     exposure: f64,
     /// Whether samples draw a wavelength (dispersion, or a coating that depends on it).
@@ -324,6 +363,8 @@ impl Realistic {
             film_half: DVec2::new(half * resolution.x as f64, half * resolution.y as f64),
             pupil: Vec::new(),
             ghost_disk: 0.0,
+            front_disk: 0.0,
+            flare_sampling: options.flare_sampling,
             exposure: 1.0,
             spectral: dispersive || (options.flare && options.coated),
             flare: options.flare,
@@ -378,6 +419,7 @@ impl Realistic {
             }
         }
         cam.ghost_disk = cam.rear_sampling_radius();
+        cam.front_disk = cam.front_sampling_radius();
         cam.pupil = cam.exit_pupil_bounds(dispersive);
         let e0 = cam.centre_irradiance();
         if !positive(e0) {
@@ -393,7 +435,13 @@ impl Realistic {
     /// Whether samples need [`Realistic::sample_ray`]'s `u_path` (a wavelength, or a
     /// choice of ghost path).
     pub fn uses_path_sample(&self) -> bool {
-        self.spectral || self.flare
+        self.spectral || (self.flare && self.flare_sampling == FlareSampling::Camera)
+    }
+
+    /// Whether the ghosts come from light tracing ([`Realistic::ghost_splat`]): a
+    /// renderer then adds them to the image, and camera rays take the direct path only.
+    pub fn traces_ghosts_from_lights(&self) -> bool {
+        !self.ghosts.is_empty() && self.flare_sampling == FlareSampling::Light
     }
 
     /// The distance from the film to the rear surface's vertex (mm).
@@ -621,6 +669,99 @@ impl Realistic {
         rear.aperture + sag * slope.max(1.0) + 1e-6
     }
 
+    /// Radius of the disk on the front vertex plane that holds every ray able to enter
+    /// the front surface's clear aperture at up to 72° from the axis (tan 72° ≈ 3).
+    fn front_sampling_radius(&self) -> f64 {
+        let front = &self.interfaces[0];
+        let sag = if front.is_stop() {
+            0.0
+        } else {
+            let r = front.radius.abs();
+            r - (r * r - front.aperture * front.aperture).max(0.0).sqrt()
+        };
+        front.aperture + 3.0 * sag + 1e-6
+    }
+
+    /// A point of the disk on the front vertex plane through which light-traced ghosts
+    /// enter the lens, uniform in area for uniform `u`: in lens space (mm, for
+    /// [`Realistic::ghost_splat`]) and in camera space (metres).
+    pub fn front_point(&self, u: Vec2) -> (DVec3, Vec3) {
+        let q = crate::sampling::warp::square_to_uniform_disk_concentric(u).as_dvec2()
+            * self.front_disk;
+        let p = DVec3::new(q.x, q.y, self.interfaces[0].z);
+        (p, (DVec3::new(p.x, p.y, -p.z) * 1e-3).as_vec3())
+    }
+
+    /// Light arriving at the front point `x` (lens space, from [`Realistic::front_point`])
+    /// along the camera-space direction `travel`, carried along a ghost path (two
+    /// reflections, the pair drawn with `u_ghost` in proportion to the camera's ghost
+    /// probabilities) at a wavelength drawn with `u_lambda` to the film. Returns the
+    /// raster position where it lands and the weight by which the incident radiance
+    /// (over its solid-angle density at `x`) estimates that pixel's value,
+    /// `exposure · T · cos θ · A_front / (P(ghost) · A_pixel)` times the wavelength's RGB
+    /// weight; a renderer averages these splats over all the paths it traces. It is the camera-ray estimate turned around: the lens
+    /// conserves étendue, so the film-side measure cos⁴θ·dA_rear/d²·dA_film of a camera
+    /// ray equals cos θ·dω·dA_front on the scene side.
+    pub fn ghost_splat(
+        &self,
+        x: DVec3,
+        travel: Vec3,
+        u_ghost: f32,
+        u_lambda: f32,
+    ) -> Option<(Vec2, Vec3)> {
+        if self.ghosts.is_empty() {
+            return None;
+        }
+        let d = DVec3::new(travel.x as f64, travel.y as f64, -travel.z as f64).normalize();
+        // Toward the film (+z in lens space).
+        if d.z.is_nan() || d.z <= 0.0 {
+            return None;
+        }
+        let (lambda, rgb) = if self.spectral {
+            self.sensor.sample(u_lambda as f64)
+        } else {
+            (LAMBDA_D, Vec3::ONE)
+        };
+        let k = self
+            .ghost_cdf
+            .partition_point(|&c| c <= u_ghost as f64)
+            .min(self.ghosts.len() - 1);
+        let (front, rear) = self.ghosts[k];
+        // Start well in front of the front surface's cap.
+        let back = (self.front_disk + 1.0) / d.z;
+        let mut ray = LensRay { o: x - d * back, d };
+        let n = self.interfaces.len();
+        let mut t = 1.0;
+        for i in 0..rear {
+            t *= self.cross(i, &mut ray, false, lambda)?;
+        }
+        t *= self.cross(rear, &mut ray, true, lambda)?;
+        for i in (front + 1..rear).rev() {
+            t *= self.cross(i, &mut ray, false, lambda)?;
+        }
+        t *= self.cross(front, &mut ray, true, lambda)?;
+        for i in front + 1..n {
+            t *= self.cross(i, &mut ray, false, lambda)?;
+        }
+        if ray.d.z.is_nan() || ray.d.z <= 0.0 {
+            return None;
+        }
+        let f = ray.o + ray.d * (-ray.o.z / ray.d.z);
+        let nf = DVec2::new(-f.x / self.film_half.x, -f.y / self.film_half.y);
+        if !(nf.x.abs() < 1.0 && nf.y.abs() < 1.0) {
+            return None;
+        }
+        let raster = (nf + DVec2::ONE) * 0.5 * self.resolution.as_dvec2();
+        let pixel_area = 4.0 * self.film_half.x * self.film_half.y
+            / (self.resolution.x as f64 * self.resolution.y as f64);
+        let front_area = PI * self.front_disk * self.front_disk;
+        let w = self.exposure * t * d.z * front_area / (self.ghost_probability[k] * pixel_area);
+        if !(w > 0.0 && w.is_finite()) {
+            return None;
+        }
+        Some((raster.as_vec2(), rgb * w as f32))
+    }
+
     /// The exit pupil's bounds per film ring (see the module notes); with dispersion,
     /// the trial rays cycle through three wavelengths.
     fn exit_pupil_bounds(&self, dispersive: bool) -> Vec<[f64; 4]> {
@@ -778,7 +919,7 @@ impl Realistic {
     /// The path of a sample for a uniform `u`, and the probability of choosing it.
     #[inline]
     fn choose_path(&self, u: f64) -> (LensPath, f64) {
-        if self.ghosts.is_empty() {
+        if self.ghosts.is_empty() || self.flare_sampling == FlareSampling::Light {
             return (LensPath::Direct, 1.0);
         }
         if u >= GHOST_PROBABILITY {

@@ -23,20 +23,22 @@
 
 use super::props::Node;
 use super::xml::resolve_path;
-use crate::camera::{Camera, Realistic, RealisticOptions};
+use crate::camera::{Camera, FlareSampling, Realistic, RealisticOptions};
 use crate::error::{Error, Result};
 use crate::math::Transform;
 use glam::UVec2;
 use std::path::Path;
 
 /// The names a scene dialect gives the realistic camera's parameters (the boolean ones,
-/// `dispersion`, `flare`, `coated` and the integer `blades`, are the same in both).
+/// `dispersion`, `flare`, `coated` and the integer `blades`, are the same in both;
+/// `flare_sampling` is `light` or `camera`).
 pub(crate) struct RealisticNames {
     pub lens_file: &'static str,
     pub aperture_diameter: &'static str,
     pub focus_distance: &'static str,
     pub film_diagonal: &'static str,
     pub blade_rotation: &'static str,
+    pub flare_sampling: &'static str,
 }
 
 /// A realistic camera from a scene node ([`crate::camera::Realistic`]); errors name the
@@ -60,6 +62,15 @@ pub(crate) fn realistic_camera(
             (node.float_or(names.blade_rotation, 0.0)? as f64).to_radians(),
         )),
     };
+    let flare_sampling = match node.string(names.flare_sampling) {
+        None => FlareSampling::default(),
+        Some(name) => FlareSampling::from_name(&name).ok_or_else(|| {
+            node.error(format!(
+                "`{}` must be `light` or `camera`, got `{name}`",
+                names.flare_sampling
+            ))
+        })?,
+    };
     let options = RealisticOptions {
         aperture_diameter: node.float(names.aperture_diameter)?.map(f64::from),
         focus_distance: node.float_or(names.focus_distance, 10.0)? as f64,
@@ -68,6 +79,7 @@ pub(crate) fn realistic_camera(
         flare: node.bool_or("flare", false)?,
         coated: node.bool_or("coated", true)?,
         blades,
+        flare_sampling,
     };
     let camera = Realistic::new(resolution, render_from_camera, &surfaces, &options)
         .map_err(|e| node.error(format!("{} ({})", e, path.display())))?;

@@ -1050,6 +1050,7 @@ impl Builder {
                     focus_distance: "focusDistance",
                     film_diagonal: "filmDiagonal",
                     blade_rotation: "bladeRotation",
+                    flare_sampling: "flareSampling",
                 };
                 super::lens::realistic_camera(node, resolution, render_from_camera, &names)?
             }

@@ -777,6 +777,7 @@ impl Builder {
                     focus_distance: "focus_distance",
                     film_diagonal: "film_diagonal",
                     blade_rotation: "blade_rotation",
+                    flare_sampling: "flare_sampling",
                 };
                 super::lens::realistic_camera(node, resolution, render_from_camera, &names)?
             }

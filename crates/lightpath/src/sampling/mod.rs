@@ -41,6 +41,15 @@ impl Sampler {
         }
     }
 
+    /// The seed.
+    pub fn seed(&self) -> u64 {
+        match self {
+            Sampler::Independent(s) => s.seed,
+            Sampler::Sobol(s) => s.seed,
+            Sampler::Halton(s) => s.seed,
+        }
+    }
+
     /// Positions the sampler at sample `index` of `pixel`.
     #[inline]
     pub fn start_pixel_sample(&mut self, pixel: UVec2, index: u32) {

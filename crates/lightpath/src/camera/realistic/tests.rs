@@ -322,6 +322,7 @@ fn flare_weights_estimate_the_sum_over_paths() {
             coated: false,
             dispersion: false,
             focus_distance: 5.0,
+            flare_sampling: FlareSampling::Camera,
             ..Default::default()
         },
     );
