@@ -1244,7 +1244,8 @@ mod tests {
     }
 
     /// With a time budget and no sample limit, the render stops near the budget with a
-    /// whole number of samples in every pixel.
+    /// whole number of samples in every pixel. (In a thread pool of its own: in rayon's
+    /// global pool, its tiles would queue behind other tests' work.)
     #[test]
     fn time_budget_stops_the_render() {
         let l = scene("independent", 1);
@@ -1252,16 +1253,22 @@ mod tests {
         let budget = Duration::from_millis(300);
         let fractions = std::sync::Mutex::new(Vec::new());
         let report = |p: &Progress| fractions.lock().unwrap().push(p.fraction);
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
         let start = Instant::now();
-        let out = r
-            .render_progressive(
-                &RenderControl {
-                    time_budget: Some(budget),
-                    progress: Some(&report),
-                    ..Default::default()
-                },
-                &mut |_| ControlFlow::Continue(()),
-            )
+        let out = pool
+            .install(|| {
+                r.render_progressive(
+                    &RenderControl {
+                        time_budget: Some(budget),
+                        progress: Some(&report),
+                        ..Default::default()
+                    },
+                    &mut |_| ControlFlow::Continue(()),
+                )
+            })
             .unwrap();
         let took = start.elapsed();
         assert!(took < budget + Duration::from_millis(250), "{took:?}");
