@@ -256,6 +256,17 @@ fn mitsuba_scenes_take_a_realistic_sensor() {
     };
     assert!(cam.uses_path_sample());
     assert_eq!(cam.resolution, glam::UVec2::new(32, 24));
+    // Ghosts from the lights by default; from camera rays with `flare_sampling`.
+    assert!(cam.traces_ghosts_from_lights());
+    let xml = xml.replace(
+        r#"<boolean name="flare" value="true"/>"#,
+        r#"<boolean name="flare" value="true"/><string name="flare_sampling" value="camera"/>"#,
+    );
+    let loaded = load(&xml);
+    let Some(Camera::Realistic(cam)) = loaded.scene.camera.as_ref() else {
+        panic!("not a realistic camera");
+    };
+    assert!(!cam.traces_ghosts_from_lights());
 }
 
 /// Ghosts traced from the light (the default) against ghosts found by camera rays:
