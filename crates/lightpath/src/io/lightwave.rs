@@ -768,7 +768,7 @@ impl Builder {
             Some("twosided") => {
                 self.check_children(node, &["bsdf"])?;
                 let inner = self.material(&self.single_child(node, "bsdf")?)?;
-                (Material::TwoSided(TwoSided { inner }), &[])
+                (Material::TwoSided(TwoSided::new(inner)), &[])
             }
             Some("blend") => {
                 self.check_children(node, &["bsdf", "texture"])?;

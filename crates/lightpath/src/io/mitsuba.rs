@@ -48,7 +48,7 @@
 //!   `roughplastic` takes the same `alpha` (isotropic only) and `distribution`.
 //!   `principled` maps `base_color`, `roughness`, `metallic`, `specular` (other
 //!   parameters are errors).
-//!   `twosided` with two different BSDFs is unsupported.
+//!   `twosided` with two BSDFs uses the first in front, the second behind.
 //! - Emitters: `directional` `direction` is where the light travels (negated for ours).
 //!   `envmap` follows Mitsuba's lat-long mapping: a local direction d reads
 //!   u = atan2(d.x, −d.z)/2π, v = acos(d.y)/π; ours is the same with x and z swapped,
@@ -1551,16 +1551,19 @@ impl Builder {
                 self.check_children(node, &["bsdf"])?;
                 let inner = self.bsdfs(node)?;
                 match inner.len() {
-                    1 => Material::TwoSided(TwoSided {
-                        inner: self.material(&inner[0])?,
-                    }),
-                    2 if Rc::ptr_eq(&inner[0], &inner[1]) => Material::TwoSided(TwoSided {
-                        inner: self.material(&inner[0])?,
-                    }),
-                    2 => {
-                        return Err(node.error("twosided with two different BSDFs is not supported"))
+                    1 => Material::TwoSided(TwoSided::new(self.material(&inner[0])?)),
+                    2 if Rc::ptr_eq(&inner[0], &inner[1]) => {
+                        Material::TwoSided(TwoSided::new(self.material(&inner[0])?))
                     }
-                    n => return Err(node.error(format!("twosided needs one <bsdf>, found {n}"))),
+                    2 => Material::TwoSided(TwoSided {
+                        inner: self.material(&inner[0])?,
+                        back: Some(self.material(&inner[1])?),
+                    }),
+                    n => {
+                        return Err(
+                            node.error(format!("twosided needs one or two <bsdf>s, found {n}"))
+                        )
+                    }
                 }
             }
             Some("blendbsdf") => {
@@ -1777,14 +1780,19 @@ mod tests {
     }
 
     /// Diffuse, conductor and rough conductor are black from behind, as in Mitsuba;
-    /// inside `twosided` they reflect on both sides.
+    /// inside `twosided` they reflect on both sides, and a `twosided` of two BSDFs puts
+    /// the first in front and the second behind.
     #[test]
     fn reflective_bsdfs_are_one_sided() {
         let loaded = load(
             &scene_with(
                 r#"<shape type="rectangle"><bsdf type="diffuse"/></shape>
                    <shape type="rectangle"><bsdf type="twosided"><bsdf type="diffuse"/></bsdf></shape>
-                   <shape type="rectangle"><bsdf type="roughconductor"/></shape>"#,
+                   <shape type="rectangle"><bsdf type="roughconductor"/></shape>
+                   <shape type="rectangle"><bsdf type="twosided">
+                       <bsdf type="diffuse"><rgb name="reflectance" value="0.8, 0.1, 0.1"/></bsdf>
+                       <bsdf type="diffuse"><rgb name="reflectance" value="0.1, 0.1, 0.8"/></bsdf>
+                   </bsdf></shape>"#,
             ),
             &[],
         )
@@ -1818,6 +1826,21 @@ mod tests {
         assert!(
             f(1, down, -wi_up).max_element() > 0.0,
             "twosided from behind"
+        );
+        // Lambertian: reflectance · cos θ / π on the side the BSDF serves.
+        let front = f(3, up, wi_up) * std::f32::consts::PI / wi_up.z;
+        let back = f(3, down, -wi_up) * std::f32::consts::PI / wi_up.z;
+        assert!(
+            (front - Vec3::new(0.8, 0.1, 0.1)).length() < 1e-5,
+            "{front}"
+        );
+        assert!((back - Vec3::new(0.1, 0.1, 0.8)).length() < 1e-5, "{back}");
+        let three = r#"<shape type="rectangle"><bsdf type="twosided">
+            <bsdf type="diffuse"/><bsdf type="diffuse"/><bsdf type="diffuse"/></bsdf></shape>"#;
+        let e = load(&scene_with(three), &[]).unwrap_err().to_string();
+        assert!(
+            e.contains("twosided needs one or two <bsdf>s, found 3"),
+            "{e}"
         );
     }
 

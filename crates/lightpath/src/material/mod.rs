@@ -417,7 +417,7 @@ impl Material {
     #[inline(never)]
     fn is_delta_wrapped(&self) -> bool {
         match self {
-            Material::TwoSided(m) => m.inner.is_delta(),
+            Material::TwoSided(m) => m.is_delta(),
             Material::OneSided(m) => m.inner.is_delta(),
             Material::NormalMap(m) => m.inner.is_delta(),
             Material::Blend(m) => m.first.is_delta() && m.second.is_delta(),

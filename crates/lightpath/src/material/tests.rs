@@ -116,8 +116,13 @@ fn blend(first: Material, second: Material, w: f32) -> Material {
 }
 
 fn twosided(inner: Material) -> Material {
+    Material::TwoSided(TwoSided::new(Arc::new(inner)))
+}
+
+fn twosided_pair(front: Material, back: Material) -> Material {
     Material::TwoSided(TwoSided {
-        inner: Arc::new(inner),
+        inner: Arc::new(front),
+        back: Some(Arc::new(back)),
     })
 }
 
@@ -242,6 +247,12 @@ fn chi2_cases(family: &str) -> Vec<Case> {
                 m,
                 dir(130.0, 30.0),
             ));
+            // Two BSDFs: each side samples its own.
+            for t in [30.0, 150.0] {
+                let m = twosided_pair(rough_conductor(0.3), plastic(0.5, 1.5));
+                let name = format!("twosided(roughconductor, plastic) θo={t}");
+                cases.push(case(name, m, dir(t, 30.0)));
+            }
             for t in [10.0, 45.0] {
                 let m = normalmap(rough_conductor(0.3), Vec3::new(0.65, 0.4, 0.9));
                 cases.push(case(format!("normalmap θo={t}"), m, dir(t, 30.0)));
@@ -866,6 +877,10 @@ fn reflective_bsdfs_are_reciprocal() {
         ),
         ("blend", blend(diffuse(0.5), rough_conductor(0.5), 0.3)),
         ("twosided(plastic)", twosided(plastic(0.6, 1.5))),
+        (
+            "twosided(diffuse, roughconductor)",
+            twosided_pair(diffuse(0.6), rough_conductor(0.4)),
+        ),
     ];
     let mut rng = Pcg32::new(11, 4);
     for (name, m) in &materials {
