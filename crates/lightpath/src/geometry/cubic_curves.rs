@@ -331,25 +331,29 @@ fn bezier(b: &[DVec4; 4], u: f64) -> (DVec4, DVec4, DVec4) {
 /// `h(u) = |x − c(u)|² − r(u)²` (from the best of nine samples, refined by Newton's
 /// method on `h′ = 0`) is below `−10⁻⁷·r²` for the segment's largest radius `r`.
 fn point_inside(b: &[DVec4; 4], x: DVec3) -> bool {
-    let h = |u: f64| {
-        let (c, _, _) = bezier(b, u);
-        (x - c.truncate()).length_squared() - c.w * c.w
-    };
     let r = b.iter().fold(0.0f64, |m, q| m.max(q.w));
     let limit = -1e-7 * r * r;
-    let mut u = 0.0;
-    let mut least = f64::INFINITY;
-    for k in 0..=8 {
-        let v = k as f64 / 8.0;
-        let hv = h(v);
-        if hv < least {
-            (least, u) = (hv, v);
-        }
-    }
-    if least < limit {
-        return true;
-    }
-    for _ in 0..16 {
+    let (least, start) = (0..=8)
+        .map(|k| {
+            let u = k as f64 / 8.0;
+            (power(b, x, u), u)
+        })
+        .fold((f64::INFINITY, 0.0), |m, v| if v.0 < m.0 { v } else { m });
+    least < limit || power(b, x, least_power(b, x, start, 0.0, 1.0, 16)) < limit
+}
+
+/// `h(u) = |x − c(u)|² − r(u)²`: negative where `x` is inside the sphere at `u`.
+#[inline]
+fn power(b: &[DVec4; 4], x: DVec3, u: f64) -> f64 {
+    let (c, _, _) = bezier(b, u);
+    (x - c.truncate()).length_squared() - c.w * c.w
+}
+
+/// A local minimum of [`power`] over `[u0, u1]`: Newton's method on `h′ = 0` from
+/// `start`, at most `steps` steps, stopping where `h″ ≤ 0`.
+fn least_power(b: &[DVec4; 4], x: DVec3, start: f64, u0: f64, u1: f64, steps: u32) -> f64 {
+    let mut u = start;
+    for _ in 0..steps {
         let (c, d1, d2) = bezier(b, u);
         let (p, dp, ddp) = (c.truncate() - x, d1.truncate(), d2.truncate());
         let g = p.dot(dp) - c.w * d1.w;
@@ -357,14 +361,14 @@ fn point_inside(b: &[DVec4; 4], x: DVec3) -> bool {
         if dg <= 0.0 || !dg.is_finite() {
             break;
         }
-        let next = (u - g / dg).clamp(0.0, 1.0);
+        let next = (u - g / dg).clamp(u0, u1);
         let step = (next - u).abs();
         u = next;
         if step < 1e-12 {
             break;
         }
     }
-    h(u) < limit
+    u
 }
 
 /// The halves of a Bézier segment at `u = ½`.
@@ -547,30 +551,11 @@ impl Search {
     /// of `h(u) = |c(u)|² − r(u)²` over the piece (Newton's method on `h′ = 0` from the
     /// piece's middle, and its ends) is negative.
     fn origin_inside(&self, u0: f64, u1: f64) -> bool {
-        let h = |u: f64| {
-            let (c, _, _) = bezier(&self.segment, u);
-            c.truncate().length_squared() - c.w * c.w
-        };
-        if h(u0) < 0.0 || h(u1) < 0.0 {
-            return true;
+        let h = |u: f64| power(&self.segment, DVec3::ZERO, u);
+        h(u0) < 0.0 || h(u1) < 0.0 || {
+            let u = least_power(&self.segment, DVec3::ZERO, 0.5 * (u0 + u1), u0, u1, 12);
+            h(u) < 0.0
         }
-        let mut u = 0.5 * (u0 + u1);
-        for _ in 0..12 {
-            let (c, d1, d2) = bezier(&self.segment, u);
-            let (p, dp, ddp) = (c.truncate(), d1.truncate(), d2.truncate());
-            let g = p.dot(dp) - c.w * d1.w;
-            let dg = dp.length_squared() + p.dot(ddp) - d1.w * d1.w - c.w * d2.w;
-            if dg <= 0.0 || !dg.is_finite() {
-                break;
-            }
-            let next = (u - g / dg).clamp(u0, u1);
-            let step = (next - u).abs();
-            u = next;
-            if step < 1e-12 {
-                break;
-            }
-        }
-        h(u) < 0.0
     }
 
     /// Newton's method on the swept surface's two conditions in `(u, s)`, from a start
