@@ -658,12 +658,7 @@ impl Realistic {
     /// ray cross the plane outside the aperture).
     fn rear_sampling_radius(&self) -> f64 {
         let rear = self.interfaces.last().unwrap();
-        let sag = if rear.is_stop() {
-            0.0
-        } else {
-            let r = rear.radius.abs();
-            r - (r * r - rear.aperture * rear.aperture).max(0.0).sqrt()
-        };
+        let sag = self.sag(self.interfaces.len() - 1);
         let d = -rear.z;
         let slope = (self.film_half.length() + rear.aperture + sag) / d.max(1e-9);
         rear.aperture + sag * slope.max(1.0) + 1e-6
@@ -672,14 +667,26 @@ impl Realistic {
     /// Radius of the disk on the front vertex plane that holds every ray able to enter
     /// the front surface's clear aperture at up to 72° from the axis (tan 72° ≈ 3).
     fn front_sampling_radius(&self) -> f64 {
-        let front = &self.interfaces[0];
-        let sag = if front.is_stop() {
-            0.0
-        } else {
-            let r = front.radius.abs();
-            r - (r * r - front.aperture * front.aperture).max(0.0).sqrt()
-        };
-        front.aperture + 3.0 * sag + 1e-6
+        self.interfaces[0].aperture + 3.0 * self.sag(0) + 1e-6
+    }
+
+    /// How far surface `i` bulges from its vertex plane at the rim of its aperture (0
+    /// for the stop).
+    fn sag(&self, i: usize) -> f64 {
+        let s = &self.interfaces[i];
+        if s.is_stop() {
+            return 0.0;
+        }
+        let r = s.radius.abs();
+        r - (r * r - s.aperture * s.aperture).max(0.0).sqrt()
+    }
+
+    /// The ghost for a uniform `v`, drawn in proportion to the ghost probabilities.
+    #[inline]
+    fn pick_ghost(&self, v: f64) -> usize {
+        self.ghost_cdf
+            .partition_point(|&c| c <= v)
+            .min(self.ghosts.len() - 1)
     }
 
     /// A point of the disk on the front vertex plane through which light-traced ghosts
@@ -699,9 +706,10 @@ impl Realistic {
     /// raster position where it lands and the weight by which the incident radiance
     /// (over its solid-angle density at `x`) estimates that pixel's value,
     /// `exposure · T · cos θ · A_front / (P(ghost) · A_pixel)` times the wavelength's RGB
-    /// weight; a renderer averages these splats over all the paths it traces. It is the camera-ray estimate turned around: the lens
-    /// conserves étendue, so the film-side measure cos⁴θ·dA_rear/d²·dA_film of a camera
-    /// ray equals cos θ·dω·dA_front on the scene side.
+    /// weight; a renderer averages these splats over all the paths it traces. It is the
+    /// camera-ray estimate turned around: the lens conserves étendue, so the film-side
+    /// measure cos⁴θ·dA_rear/d²·dA_film of a camera ray equals cos θ·dω·dA_front on the
+    /// scene side.
     pub fn ghost_splat(
         &self,
         x: DVec3,
@@ -722,10 +730,7 @@ impl Realistic {
         } else {
             (LAMBDA_D, Vec3::ONE)
         };
-        let k = self
-            .ghost_cdf
-            .partition_point(|&c| c <= u_ghost as f64)
-            .min(self.ghosts.len() - 1);
+        let k = self.pick_ghost(u_ghost as f64);
         let (front, rear) = self.ghosts[k];
         // Start well in front of the front surface's cap.
         let back = (self.front_disk + 1.0) / d.z;
@@ -925,11 +930,7 @@ impl Realistic {
         if u >= GHOST_PROBABILITY {
             return (LensPath::Direct, 1.0 - GHOST_PROBABILITY);
         }
-        let v = u / GHOST_PROBABILITY;
-        let k = self
-            .ghost_cdf
-            .partition_point(|&c| c <= v)
-            .min(self.ghosts.len() - 1);
+        let k = self.pick_ghost(u / GHOST_PROBABILITY);
         let (front, rear) = self.ghosts[k];
         (
             LensPath::Ghost { front, rear },
