@@ -8,6 +8,9 @@ hierarchy.gltf  the scene with an external buffer (hierarchy.bin), the base colo
                 file (normal.png)
 hierarchy.glb   the same scene in a binary container, every image in a buffer view
 defaults.gltf   one quad, no camera and no light (a data: URI buffer)
+alpha.gltf      alpha modes: a quad cut out by an RGBA texture (MASK), a quad of constant
+                alpha below its cutoff (MASK, invisible), one with alpha BLEND (rendered
+                opaque), and an opaque quad behind them all
 
 The scene (glTF coordinates, +Y up): a root node (translated, turned 30 degrees about Y,
 scaled 1.5) with two children that use the same cube mesh (u16 indices, normals, UVs,
@@ -27,7 +30,8 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 
 
 def png(width, height, rows):
-    """An 8-bit RGB PNG; rows[y][x] = (r, g, b), row 0 at the top."""
+    """An 8-bit RGB PNG, or RGBA when the pixels have four channels; rows[y][x] =
+    (r, g, b) or (r, g, b, a), row 0 at the top."""
     raw = b"".join(b"\x00" + bytes(c for px in row for c in px) for row in rows)
 
     def chunk(kind, data):
@@ -35,7 +39,8 @@ def png(width, height, rows):
                 + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF))
 
     return (b"\x89PNG\r\n\x1a\n"
-            + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0))
+            + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8,
+                                         6 if len(rows[0][0]) == 4 else 2, 0, 0, 0))
             + chunk(b"IDAT", zlib.compress(raw))
             + chunk(b"IEND", b""))
 
@@ -227,6 +232,61 @@ def defaults_scene():
     }
 
 
+# Alpha (coverage) of the cut-out quad: its upper-left and lower-right quarters are
+# below the cutoff 0.5 (0 and 64/255), the others above (255 and 191/255).
+ALPHA_PNG = png(2, 2, [[(200, 30, 30, 0), (30, 200, 30, 255)],
+                       [(30, 30, 200, 191), (200, 200, 200, 64)]])
+
+
+def alpha_scene():
+    """Quads facing +Z over x in [0, 1], [1, 2], [2, 3] (y in [0, 1], z = 0), and an
+    opaque quad behind them over x in [0, 3] at z = -1; everything in one data: URI
+    buffer, the texture a data: URI PNG with nearest filtering."""
+    blob = Blob()
+
+    def quad(x0, x1, z, uvs):
+        pos = [[x0, 0, z], [x1, 0, z], [x1, 1, z], [x0, 1, z]]
+        attributes = {"POSITION": blob.accessor("3f", "VEC3", pos, FLOAT, ARRAY, bounds=True)}
+        if uvs:
+            # glTF's v runs down the image: the image's top row is at y = 1.
+            attributes["TEXCOORD_0"] = blob.accessor(
+                "2f", "VEC2", [[(p[0] - x0) / (x1 - x0), 1 - p[1]] for p in pos], FLOAT,
+                ARRAY)
+        indices = blob.accessor("H", "SCALAR", [0, 1, 2, 0, 2, 3], U16, ELEMENTS)
+        return {"attributes": attributes, "indices": indices}
+
+    prims = [quad(0, 1, 0, True), quad(1, 2, 0, False), quad(2, 3, 0, False),
+             quad(0, 3, -1, False)]
+    for material, prim in enumerate(prims):
+        prim["material"] = material
+    data = bytes(blob.data)
+    return {
+        "asset": {"version": "2.0", "generator": "lightpath tests/gltf/make_scenes.py"},
+        "scenes": [{"nodes": [0, 1, 2, 3]}],
+        "nodes": [{"name": name, "mesh": i}
+                  for i, name in enumerate(["cutout", "hidden", "blend", "back"])],
+        "meshes": [{"primitives": [p]} for p in prims],
+        "materials": [
+            {"name": "cutout", "alphaMode": "MASK", "pbrMetallicRoughness": {
+                "baseColorTexture": {"index": 0}, "metallicFactor": 0}},
+            {"name": "hidden", "alphaMode": "MASK", "alphaCutoff": 0.4,
+             "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 0.3],
+                                      "metallicFactor": 0}},
+            {"name": "blend", "alphaMode": "BLEND",
+             "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 0.3],
+                                      "metallicFactor": 0}},
+            {"name": "back", "pbrMetallicRoughness": {"metallicFactor": 0}},
+        ],
+        "textures": [{"source": 0, "sampler": 0}],
+        "samplers": [{"magFilter": 9728, "minFilter": 9728, "wrapS": 33071, "wrapT": 33071}],
+        "images": [{"uri": "data:image/png;base64," + base64.b64encode(ALPHA_PNG).decode()}],
+        "accessors": blob.accessors,
+        "bufferViews": blob.views,
+        "buffers": [{"byteLength": len(data), "uri": "data:application/octet-stream;base64,"
+                     + base64.b64encode(data).decode()}],
+    }
+
+
 def glb(doc, binary):
     text = json.dumps(doc, separators=(",", ":")).encode()
     text += b" " * (-len(text) % 4)
@@ -250,6 +310,7 @@ def main():
     doc, binary = scene(images_in_views=True, buffer_uri=None)
     write("hierarchy.glb", glb(doc, binary))
     write("defaults.gltf", json.dumps(defaults_scene(), indent=1) + "\n")
+    write("alpha.gltf", json.dumps(alpha_scene(), indent=1) + "\n")
 
 
 if __name__ == "__main__":

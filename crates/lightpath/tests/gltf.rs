@@ -339,6 +339,41 @@ fn defaults_frame_the_scene_and_light_it() {
     }
 }
 
+/// Alpha modes (`alpha.gltf`): the `MASK` quad over x in [0, 1] is there where its
+/// texture's alpha reaches 0.5 (its lower-left and upper-right quarters), the `MASK` quad
+/// of constant alpha 0.3 < 0.4 over [1, 2] is not there at all, the `BLEND` quad over
+/// [2, 3] is opaque, and the quad behind them at z = −1 is reached wherever they are not
+/// there: by camera rays and shadow rays, through the scene's two-level structure.
+#[test]
+fn alpha_mask_cuts_the_surface_out() {
+    let loaded = load(&scene_path("alpha.gltf")).unwrap();
+    let scene = &loaded.scene;
+    // The invisible quad is skipped; the other three are instances.
+    assert_eq!(scene.instances.len(), 3);
+    let mut holes = 0;
+    for i in 0..30 {
+        for j in 0..10 {
+            let (x, y) = (0.05 + 0.1 * i as f32, 0.05 + 0.1 * j as f32);
+            let there = match x {
+                x if x < 1.0 => (x < 0.5) == (y < 0.5),
+                x if x < 2.0 => false,
+                _ => true,
+            };
+            holes += usize::from(!there);
+            let ray = lightpath::math::Ray::new(Vec3::new(x, y, 1.0), -Vec3::Z);
+            let si = scene
+                .intersect(&ray)
+                .expect("the back quad is behind everything");
+            let t = if there { 1.0 } else { 2.0 };
+            assert!((si.t - t).abs() < 1e-5, "({x}, {y}): hit at t = {}", si.t);
+            let mut shadow = ray;
+            shadow.t_max = 1.5;
+            assert_eq!(scene.occluded(&shadow), there, "({x}, {y}): shadow ray");
+        }
+    }
+    assert_eq!(holes, 150);
+}
+
 /// A scratch folder for broken copies of the scenes.
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("lightpath-gltf-{}-{name}", std::process::id()));

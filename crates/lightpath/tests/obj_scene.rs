@@ -256,3 +256,50 @@ fn errors_name_file_and_line() {
     let m = message("v 0 0 0\n");
     assert!(m.contains("no faces"), "{m}");
 }
+
+/// `map_d` cuts a surface out: a quad whose coverage map is a 2×2 checker of 0 and 1
+/// (an RGB PNG: its first channel) lets rays through its lower-right and upper-left
+/// quarters to the quad behind it, closest-hit and shadow rays alike; a missing map is
+/// an error naming the MTL line.
+#[test]
+fn map_d_cuts_the_surface_out() {
+    let dir = Scratch::new("map-d");
+    // Row 0 is the top of the image (v = 1): there at the upper right and lower left.
+    let coverage = lightpath::film::Image {
+        width: 2,
+        height: 2,
+        pixels: [0.0, 1.0, 1.0, 0.0].map(glam::Vec3::splat).to_vec(),
+    };
+    lightpath::io::image::write_image(&dir.0.join("leaf mask.png"), &coverage).unwrap();
+    dir.write(
+        "lib.mtl",
+        "newmtl leaf\nKd 0.2 0.6 0.2\nmap_d leaf mask.png\n",
+    );
+    let obj = dir.write(
+        "leaf.obj",
+        "mtllib lib.mtl\n\
+         v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
+         v -1 -1 -1\nv 2 -1 -1\nv 2 2 -1\nv -1 2 -1\n\
+         vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
+         usemtl leaf\nf 1/1 2/2 3/3 4/4\n\
+         usemtl back\nf 5 6 7 8\n",
+    );
+    let loaded = load(&obj).expect("load");
+    for (x, y) in [(0.25, 0.25), (0.75, 0.25), (0.25, 0.75), (0.75, 0.75)] {
+        let there = (x < 0.5) == (y < 0.5);
+        let ray = lightpath::math::Ray::new(glam::Vec3::new(x, y, 1.0), -glam::Vec3::Z);
+        let si = loaded
+            .scene
+            .intersect(&ray)
+            .expect("the back quad is behind");
+        let t = if there { 1.0 } else { 2.0 };
+        assert!((si.t - t).abs() < 1e-5, "({x}, {y}): t = {}", si.t);
+        let mut shadow = ray;
+        shadow.t_max = 1.5;
+        assert_eq!(loaded.scene.occluded(&shadow), there, "({x}, {y})");
+    }
+    let lib = dir.write("lib.mtl", "newmtl leaf\n\nmap_d nowhere.png\n");
+    let m = load(&obj).expect_err("missing map_d").to_string();
+    assert!(m.starts_with(&format!("{}:3:", lib.display())), "{m}");
+    assert!(m.contains("nowhere.png"), "{m}");
+}

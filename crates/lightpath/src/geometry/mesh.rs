@@ -92,6 +92,22 @@ pub struct TriangleMesh {
     /// instance flattened into render space keeps its corners, and so its texture
     /// parameterisation, and marks the triangle instead); empty when none is.
     flipped: Vec<bool>,
+    /// An alpha cutout (glTF's `alphaMode` `MASK`): where the coverage at a hit is below
+    /// the cutoff, rays pass through as if the triangle were not there.
+    alpha: Option<AlphaMask>,
+}
+
+/// A cutout of a mesh's surface by a coverage texture: a point of a triangle is there
+/// where `coverage`'s first channel at its texture coordinates is at least `cutoff`
+/// (glTF's `alphaCutoff` rule), else closest-hit and shadow rays pass through it.
+///
+/// A mesh with a cutout is traced triangle by triangle through its accelerator, with the
+/// coverage looked up at every candidate hit, rather than in SIMD blocks and packets.
+/// Area lights on it emit from the whole triangles.
+#[derive(Debug, Clone)]
+pub struct AlphaMask {
+    pub coverage: std::sync::Arc<crate::texture::Texture>,
+    pub cutoff: f32,
 }
 
 /// Per-ray constants of the watertight test: the axis permutation and shear that make
@@ -386,6 +402,7 @@ impl TriangleMesh {
             avx512: crate::cpu::has_avx512(),
             area_distribution: std::sync::OnceLock::new(),
             flipped: Vec::new(),
+            alpha: None,
         })
     }
 
@@ -398,6 +415,51 @@ impl TriangleMesh {
         } else {
             Vec::new()
         };
+    }
+
+    /// Cuts the surface by an alpha mask (see [`AlphaMask`]); the SIMD blocks are
+    /// dropped, as the masked traversal tests triangle by triangle.
+    pub fn set_alpha(&mut self, mask: AlphaMask) {
+        self.blocks = Vec::new();
+        self.alpha = Some(mask);
+    }
+
+    /// The mesh's alpha mask, if it has one.
+    pub fn alpha(&self) -> Option<&AlphaMask> {
+        self.alpha.as_ref()
+    }
+
+    /// Whether the surface is there at barycentrics `(b1, b2)` of triangle `prim`:
+    /// always without an alpha mask, else where the coverage reaches the cutoff.
+    #[inline]
+    fn covers(&self, prim: u32, b1: f32, b2: f32) -> bool {
+        match &self.alpha {
+            None => true,
+            Some(mask) => mask.coverage.eval(self.uv_at(prim, b1, b2)).x >= mask.cutoff,
+        }
+    }
+
+    /// Texture coordinates at barycentrics `(b1, b2)` of triangle `prim`: the mesh's,
+    /// or pbrt's default parameterisation.
+    #[inline(always)]
+    fn uv_at(&self, prim: u32, b1: f32, b2: f32) -> Vec2 {
+        let (uv0, uv1, uv2) = self.corner_uvs(prim);
+        uv0 * (1.0 - b1 - b2) + uv1 * b1 + uv2 * b2
+    }
+
+    /// The texture coordinates of triangle `prim`'s corners (see [`TriangleMesh::uv_at`]).
+    #[inline(always)]
+    fn corner_uvs(&self, prim: u32) -> (Vec2, Vec2, Vec2) {
+        if self.uvs.is_empty() {
+            (Vec2::ZERO, Vec2::X, Vec2::ONE)
+        } else {
+            let [i0, i1, i2] = self.indices[prim as usize];
+            (
+                self.uvs[i0 as usize],
+                self.uvs[i1 as usize],
+                self.uvs[i2 as usize],
+            )
+        }
     }
 
     /// Bytes of the acceleration structure and the packed triangle blocks.
@@ -534,7 +596,7 @@ impl TriangleMesh {
         self.accel.intersect(ray, stats, |prim, t_max| {
             let (p0, p1, p2) = self.vertices(prim);
             match intersect_triangle_watertight(&wr, ray.t_min, *t_max, p0, p1, p2) {
-                Some((t, _b0, b1, b2)) => {
+                Some((t, _b0, b1, b2)) if self.covers(prim, b1, b2) => {
                     *t_max = t;
                     best = Some(ShapeHit {
                         t,
@@ -543,7 +605,7 @@ impl TriangleMesh {
                     });
                     true
                 }
-                None => false,
+                _ => false,
             }
         });
         best
@@ -666,7 +728,9 @@ impl TriangleMesh {
         stats: &mut RayStats,
     ) {
         assert_eq!(rays.len(), hits.len(), "one hit per ray");
-        let (Accel::Bvh8(bvh), Some(order)) = (&self.accel, self.accel.leaf_order()) else {
+        let (Accel::Bvh8(bvh), Some(order), true) =
+            (&self.accel, self.accel.leaf_order(), self.alpha.is_none())
+        else {
             for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
                 *hit = self.intersect(ray, stats);
             }
@@ -701,7 +765,7 @@ impl TriangleMesh {
     /// 8-wide BVH (see [`TriangleMesh::intersect_stream`]).
     pub fn occluded_stream(&self, rays: &[Ray], occluded: &mut [bool], stats: &mut RayStats) {
         assert_eq!(rays.len(), occluded.len(), "one answer per ray");
-        let Accel::Bvh8(bvh) = &self.accel else {
+        let (Accel::Bvh8(bvh), true) = (&self.accel, self.alpha.is_none()) else {
             for (ray, o) in rays.iter().zip(occluded.iter_mut()) {
                 *o = self.occluded(ray, stats);
             }
@@ -765,12 +829,12 @@ impl TriangleMesh {
         false
     }
 
-    /// The 8-wide BVH where packets run: a `bvh8` mesh on a processor with AVX-512F and
-    /// DQ.
+    /// The 8-wide BVH where packets run: a `bvh8` mesh without an alpha mask on a
+    /// processor with AVX-512F and DQ.
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
     fn packet_bvh(&self) -> Option<&crate::accel::Bvh8> {
         match &self.accel {
-            Accel::Bvh8(bvh) if crate::accel::Bvh8::packets_supported() => {
+            Accel::Bvh8(bvh) if crate::accel::Bvh8::packets_supported() && self.alpha.is_none() => {
                 // A BVH8 mesh always has its blocks (see `TriangleMesh::new`).
                 debug_assert!(!self.blocks.is_empty() || bvh.prim_order().is_empty());
                 Some(bvh)
@@ -958,7 +1022,8 @@ impl TriangleMesh {
         let wr = WatertightRay::new(ray);
         self.accel.occluded(ray, stats, |prim| {
             let (p0, p1, p2) = self.vertices(prim);
-            intersect_triangle_watertight(&wr, ray.t_min, ray.t_max, p0, p1, p2).is_some()
+            intersect_triangle_watertight(&wr, ray.t_min, ray.t_max, p0, p1, p2)
+                .is_some_and(|(_, _, b1, b2)| self.covers(prim, b1, b2))
         })
     }
 
@@ -976,15 +1041,7 @@ impl TriangleMesh {
         let p = a0 + a1 + a2;
         let p_error = gamma(7) * (a0.abs() + a1.abs() + a2.abs());
         // Texture coordinates: the mesh's, or pbrt's default parameterisation.
-        let (uv0, uv1, uv2) = if self.uvs.is_empty() {
-            (Vec2::ZERO, Vec2::X, Vec2::ONE)
-        } else {
-            (
-                self.uvs[i0 as usize],
-                self.uvs[i1 as usize],
-                self.uvs[i2 as usize],
-            )
-        };
+        let (uv0, uv1, uv2) = self.corner_uvs(hit.prim);
         let uv = uv0 * b0 + uv1 * b1 + uv2 * b2;
         let cross = (p1 - p0).cross(p2 - p0);
         let mut n = if cross.length_squared() > 0.0 {
@@ -1474,6 +1531,126 @@ mod tests {
                     }
                     assert!(hits > 200, "{kind:?}: only {hits} hits");
                 }
+            }
+        }
+    }
+
+    /// Two unit quads facing +z, a cut-out one at z = 0 and an opaque one at z = −1; the
+    /// cut-out quad's coverage is a 2×2 nearest-filtered checker: its lower-left and
+    /// upper-right quarters are there (coverage 0.75 and 1), the others not (0.25, 0).
+    fn cutout_pair(kind: AccelKind) -> (TriangleMesh, TriangleMesh) {
+        use crate::film::Image;
+        use crate::texture::{BorderMode, FilterMode, ImageTexture, Texture};
+        let quad = |z: f32| MeshData {
+            positions: vec![
+                Vec3::new(0.0, 0.0, z),
+                Vec3::new(1.0, 0.0, z),
+                Vec3::new(1.0, 1.0, z),
+                Vec3::new(0.0, 1.0, z),
+            ],
+            normals: Vec::new(),
+            uvs: vec![Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y],
+            indices: vec![[0, 1, 2], [0, 2, 3]],
+        };
+        // Row 0 is the top of the image (v = 1).
+        let coverage = Image {
+            width: 2,
+            height: 2,
+            pixels: [0.0, 1.0, 0.75, 0.25].map(Vec3::splat).to_vec(),
+        };
+        let mut cut = TriangleMesh::new(quad(0.0), false, kind).unwrap();
+        cut.set_alpha(AlphaMask {
+            coverage: std::sync::Arc::new(Texture::Image(ImageTexture {
+                image: std::sync::Arc::new(coverage),
+                border: BorderMode::Clamp,
+                filter: FilterMode::Nearest,
+                exposure: 1.0,
+            })),
+            cutoff: 0.5,
+        });
+        let back = TriangleMesh::new(quad(-1.0), false, kind).unwrap();
+        (cut, back)
+    }
+
+    /// Rays through the holes of a cut-out quad pass (closest hit, shadow rays, streams
+    /// and packets alike), rays elsewhere stop at it, for every accelerator.
+    #[test]
+    fn alpha_mask_lets_rays_through_its_holes() {
+        for kind in [
+            AccelKind::List,
+            AccelKind::Bvh2,
+            AccelKind::Bvh4,
+            AccelKind::Bvh8,
+            AccelKind::Grid,
+            AccelKind::KdTree,
+        ] {
+            let (cut, back) = cutout_pair(kind);
+            assert!(
+                !cut.traces_packets(),
+                "{kind:?}: a cut-out mesh traces ray by ray"
+            );
+            let mut rays = Vec::new();
+            let mut expect = Vec::new();
+            let mut rng = Pcg32::new(7, 3);
+            for _ in 0..400 {
+                let (x, y) = (rng.next_f32(), rng.next_f32());
+                // Stay off the quarter borders, where the nearest texel is a coin toss.
+                if (x - 0.5).abs() < 0.01 || (y - 0.5).abs() < 0.01 {
+                    continue;
+                }
+                let there = (x < 0.5) == (y < 0.5);
+                let origin = Vec3::new(x, y, 1.0);
+                let d = Vec3::new(0.0, 0.0, -1.0);
+                rays.push(Ray::new(origin, d));
+                expect.push(there);
+            }
+            let mut stats = RayStats::default();
+            for (ray, &there) in rays.iter().zip(&expect) {
+                let hit = cut.intersect(ray, &mut stats);
+                assert_eq!(
+                    hit.is_some(),
+                    there,
+                    "{kind:?}: closest hit at {:?}",
+                    ray.origin
+                );
+                if let Some(h) = hit {
+                    assert!((h.t - 1.0).abs() < 1e-6);
+                    // The interaction's texture coordinates are those the mask looked up.
+                    let si = cut.interaction(ray, &h);
+                    assert!((si.uv - ray.origin.truncate()).length() < 1e-5);
+                }
+                // A segment to the back quad is blocked only where the front one is there.
+                let mut shadow = *ray;
+                shadow.t_max = 1.5;
+                assert_eq!(
+                    cut.occluded(&shadow, &mut stats),
+                    there,
+                    "{kind:?}: shadow ray"
+                );
+                // Behind a hole, the back quad is what the ray reaches.
+                let behind = back.intersect(ray, &mut stats).unwrap();
+                assert!((behind.t - 2.0).abs() < 1e-6);
+            }
+            let mut hits = vec![None; rays.len()];
+            cut.intersect_stream(&rays, &mut hits, &mut stats);
+            let mut packet_hits = vec![None; rays.len()];
+            cut.intersect_packets(&rays, &mut packet_hits, &mut stats);
+            let mut occluded = vec![false; rays.len()];
+            cut.occluded_stream(&rays, &mut occluded, &mut stats);
+            let mut packet_occluded = vec![false; rays.len()];
+            cut.occluded_packets(&rays, &mut packet_occluded, &mut stats);
+            for i in 0..rays.len() {
+                assert_eq!(hits[i].is_some(), expect[i], "{kind:?}: stream ray {i}");
+                assert_eq!(
+                    packet_hits[i].is_some(),
+                    expect[i],
+                    "{kind:?}: packet ray {i}"
+                );
+                assert_eq!(occluded[i], expect[i], "{kind:?}: stream shadow ray {i}");
+                assert_eq!(
+                    packet_occluded[i], expect[i],
+                    "{kind:?}: packet shadow ray {i}"
+                );
             }
         }
     }

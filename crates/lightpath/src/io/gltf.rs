@@ -26,8 +26,12 @@
 //!   reflectance at normal incidence, as glTF's F0 = 0.04). A `normalTexture` (linear,
 //!   its `scale` applied to x and y) wraps it in a `normalmap`. Approximations: the
 //!   principled BSDF's Fresnel and lobe weights are the course's model, not glTF's exact
-//!   BRDF; alpha (`alphaMode`, the base colour's alpha) is ignored: every surface is
-//!   opaque; `occlusionTexture` is ignored (a path tracer computes occlusion);
+//!   BRDF; `alphaMode` `MASK` cuts the surface out where the base colour's alpha
+//!   (`baseColorFactor`'s alpha × the base colour texture's alpha channel, bilinear
+//!   unless the sampler says nearest) is below `alphaCutoff` (0.5 by default): camera,
+//!   bounce and shadow rays pass through there (see [`crate::geometry::AlphaMask`]), and
+//!   a primitive of constant alpha below the cutoff is skipped; `BLEND` is rendered
+//!   opaque, with a warning; `occlusionTexture` is ignored (a path tracer computes occlusion);
 //!   `MIRRORED_REPEAT` is rendered as repeat; minification filters are bilinear; every
 //!   texture reads `TEXCOORD_0`. A primitive without a material gets glTF's default
 //!   (white, metallic 1, roughness 1).
@@ -63,12 +67,12 @@
 //!   and non-finite positions or transforms are errors. Required extensions other than
 //!   `KHR_lights_punctual` and `KHR_materials_emissive_strength` are errors.
 
-use super::image::{read_image_bytes, Transfer};
+use super::image::{read_alpha_bytes, read_image_bytes, Transfer};
 use super::{LoadOptions, LoadedScene};
 use crate::camera::{Camera, FovAxis, Orthographic, Perspective};
 use crate::error::{Error, Location, Result};
 use crate::film::Image;
-use crate::geometry::{MeshData, Shape, TriangleMesh};
+use crate::geometry::{AlphaMask, MeshData, Shape, TriangleMesh};
 use crate::integrator::{Integrator, PathTracer};
 use crate::light::{
     DirectionalLight, Emission, Environment, Light, PointLight, SpotLight, SpotProfile,
@@ -197,6 +201,8 @@ enum Texel {
     Channel(usize, f32),
     /// A tangent-space normal with its x and y scaled by a factor (linear).
     Normal(f32),
+    /// The image's alpha channel times a factor, as grey (an alpha mask's coverage).
+    Alpha(f32),
 }
 
 impl Texel {
@@ -204,6 +210,7 @@ impl Texel {
         match self {
             Texel::Scaled(_) => ColorSpace::Srgb,
             Texel::Channel(..) | Texel::Normal(_) => ColorSpace::Linear,
+            Texel::Alpha(_) => ColorSpace::Alpha,
         }
     }
 
@@ -211,6 +218,7 @@ impl Texel {
         match self {
             Texel::Scaled(factor) => c * factor,
             Texel::Channel(i, factor) => Vec3::splat(c[i] * factor),
+            Texel::Alpha(factor) => Vec3::splat(c.x * factor),
             Texel::Normal(scale) => {
                 let n = (2.0 * c - Vec3::ONE) * Vec3::new(scale, scale, 1.0);
                 (n + Vec3::ONE) * 0.5
@@ -224,8 +232,19 @@ impl Texel {
             Texel::Scaled(f) => (0, f.to_array().map(f32::to_bits)),
             Texel::Channel(i, f) => (1, [i as u32, f.to_bits(), 0]),
             Texel::Normal(f) => (2, [f.to_bits(), 0, 0]),
+            Texel::Alpha(f) => (3, [f.to_bits(), 0, 0]),
         }
     }
+}
+
+/// A material's alpha applied to a primitive ([`Loader::alpha_cut`]).
+enum AlphaCut {
+    /// Every point of the surface is there.
+    Opaque,
+    /// Cut out by a mask.
+    Mask(AlphaMask),
+    /// A constant alpha below the cutoff: nothing is there.
+    Hidden,
 }
 
 /// How an image's 8/16-bit values are decoded.
@@ -233,6 +252,8 @@ impl Texel {
 enum ColorSpace {
     Srgb,
     Linear,
+    /// Not colour: the alpha channel (linear coverage; 1 where the image has none).
+    Alpha,
 }
 
 struct Loader<'a> {
@@ -491,12 +512,12 @@ impl<'a> Loader<'a> {
                 return Err(self.error(format!("{what} has neither a uri nor a bufferView")))
             }
         };
-        let transfer = match space {
-            ColorSpace::Srgb => Transfer::Srgb,
-            ColorSpace::Linear => Transfer::Linear,
-        };
-        let decoded = read_image_bytes(&bytes, transfer)
-            .map_err(|e| self.error(format!("{what}: cannot decode: {e}")))?;
+        let decoded = match space {
+            ColorSpace::Srgb => read_image_bytes(&bytes, Transfer::Srgb),
+            ColorSpace::Linear => read_image_bytes(&bytes, Transfer::Linear),
+            ColorSpace::Alpha => read_alpha_bytes(&bytes),
+        }
+        .map_err(|e| self.error(format!("{what}: cannot decode: {e}")))?;
         if decoded.width == 0 || decoded.height == 0 {
             return Err(self.error(format!("{what} is empty")));
         }
@@ -605,17 +626,41 @@ impl<'a> Loader<'a> {
         } else {
             None
         };
-        if m.alpha_mode() != ::gltf::material::AlphaMode::Opaque {
+        if m.alpha_mode() == ::gltf::material::AlphaMode::Blend {
             log::warn!(
-                "{}: {} has alpha mode {:?}; it is rendered opaque",
+                "{}: {} has alpha mode BLEND; it is rendered opaque (only MASK cuts \
+                 surfaces out)",
                 self.path.display(),
                 describe("material", m.index().unwrap_or(0), m.name()),
-                m.alpha_mode()
             );
         }
         let done = (material, emission);
         self.materials.insert(m.index(), done.clone());
         Ok(done)
+    }
+
+    /// What a material's alpha does to a primitive's surface: glTF's `MASK` mode keeps
+    /// the points whose alpha (`baseColorFactor`'s alpha × the base colour texture's
+    /// alpha) is at least `alphaCutoff` (0.5 by default); the other modes keep all.
+    fn alpha_cut(&mut self, m: &::gltf::Material) -> Result<AlphaCut> {
+        if m.alpha_mode() != ::gltf::material::AlphaMode::Mask {
+            return Ok(AlphaCut::Opaque);
+        }
+        let cutoff = m.alpha_cutoff().unwrap_or(0.5);
+        if !cutoff.is_finite() {
+            let what = describe("material", m.index().unwrap_or(0), m.name());
+            return Err(self.error(format!("{what}: alphaCutoff {cutoff} is not finite")));
+        }
+        let pbr = m.pbr_metallic_roughness();
+        let factor = pbr.base_color_factor()[3];
+        Ok(match pbr.base_color_texture() {
+            Some(info) => AlphaCut::Mask(AlphaMask {
+                coverage: self.texture(info.texture(), info.tex_coord(), Texel::Alpha(factor))?,
+                cutoff,
+            }),
+            None if factor >= cutoff => AlphaCut::Opaque,
+            None => AlphaCut::Hidden,
+        })
     }
 
     /// The shape of one primitive, built once and shared by every node using its mesh;
@@ -646,9 +691,24 @@ impl<'a> Loader<'a> {
             if data.indices.is_empty() {
                 None
             } else {
-                let mesh = TriangleMesh::new(data, true, self.options.accel.unwrap_or_default())
-                    .map_err(|m| self.error(format!("{what}: {m}")))?;
-                Some(Arc::new(Shape::TriangleMesh(Arc::new(mesh))))
+                let mut mesh =
+                    TriangleMesh::new(data, true, self.options.accel.unwrap_or_default())
+                        .map_err(|m| self.error(format!("{what}: {m}")))?;
+                match self.alpha_cut(&primitive.material())? {
+                    AlphaCut::Opaque => Some(Arc::new(Shape::TriangleMesh(Arc::new(mesh)))),
+                    AlphaCut::Mask(mask) => {
+                        mesh.set_alpha(mask);
+                        Some(Arc::new(Shape::TriangleMesh(Arc::new(mesh))))
+                    }
+                    AlphaCut::Hidden => {
+                        log::info!(
+                            "{}: {what}'s material is MASK with a constant alpha below its \
+                             cutoff; the primitive is invisible and skipped",
+                            self.path.display()
+                        );
+                        None
+                    }
+                }
             }
         };
         self.shapes.insert(key, shape.clone());

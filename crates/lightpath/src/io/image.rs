@@ -220,6 +220,11 @@ fn image_crate_error(path: &Path, error: image::ImageError) -> Error {
 }
 
 fn read_with_image_crate(path: &Path, transfer: Transfer) -> Result<Image> {
+    Ok(from_decoded(&decode_file(path)?, transfer))
+}
+
+/// Decodes a PNG, JPEG or HDR file with the `image` crate.
+fn decode_file(path: &Path) -> Result<image::DynamicImage> {
     let file = File::open(path).map_err(|e| Error::io(path, e))?;
     let mut reader = image::ImageReader::new(BufReader::new(file));
     // The extension picks the format; the content overrides it when recognised.
@@ -229,8 +234,27 @@ fn read_with_image_crate(path: &Path, transfer: Transfer) -> Result<Image> {
     let reader = reader
         .with_guessed_format()
         .map_err(|e| Error::io(path, e))?;
-    let decoded = reader.decode().map_err(|e| image_crate_error(path, e))?;
-    Ok(from_decoded(&decoded, transfer))
+    reader.decode().map_err(|e| image_crate_error(path, e))
+}
+
+/// Reads a coverage (opacity) map, such as an MTL `map_d`, as grey: the alpha channel
+/// where the file has one, else the first channel, 8/16-bit values read linearly
+/// (coverage is not a colour).
+pub fn read_coverage(path: &Path) -> Result<Image> {
+    let image = match kind_of(path) {
+        Some(Kind::Hdr | Kind::Png | Kind::Jpeg) => {
+            let decoded = decode_file(path)?;
+            if decoded.color().has_alpha() {
+                return Ok(alpha_from_decoded(&decoded));
+            }
+            from_decoded(&decoded, Transfer::Linear)
+        }
+        _ => read_image(path, Some(Transfer::Linear))?,
+    };
+    Ok(Image {
+        pixels: image.pixels.iter().map(|p| Vec3::splat(p.x)).collect(),
+        ..image
+    })
 }
 
 /// Decodes an encoded image (PNG, JPEG, HDR; the format is guessed from the content)
@@ -238,6 +262,33 @@ fn read_with_image_crate(path: &Path, transfer: Transfer) -> Result<Image> {
 pub fn read_image_bytes(bytes: &[u8], transfer: Transfer) -> Result<Image, String> {
     let decoded = image::load_from_memory(bytes).map_err(|e| e.to_string())?;
     Ok(from_decoded(&decoded, transfer))
+}
+
+/// The alpha channel of an encoded image held in memory (as [`read_image_bytes`] reads
+/// its colour), as a grey image: alpha is linear coverage, never sRGB-encoded; an image
+/// without alpha is opaque everywhere (1).
+pub fn read_alpha_bytes(bytes: &[u8]) -> Result<Image, String> {
+    let decoded = image::load_from_memory(bytes).map_err(|e| e.to_string())?;
+    Ok(alpha_from_decoded(&decoded))
+}
+
+/// The alpha channel of a decoded image as grey (see [`read_alpha_bytes`]).
+fn alpha_from_decoded(decoded: &image::DynamicImage) -> Image {
+    let (width, height) = (decoded.width(), decoded.height());
+    let pixels: Vec<Vec3> = if !decoded.color().has_alpha() {
+        vec![Vec3::ONE; width as usize * height as usize]
+    } else {
+        decoded
+            .to_rgba32f()
+            .pixels()
+            .map(|p| Vec3::splat(p.0[3]))
+            .collect()
+    };
+    Image {
+        width,
+        height,
+        pixels,
+    }
 }
 
 /// Linear RGB from a decoded image: float data as is, integer data through `transfer`.

@@ -12,8 +12,8 @@
 //! ```
 //!
 //! Statements read: `newmtl`, `Kd`, `Ks`, `Ke`, `Tf`, `Ns`, `Ni`, `d`, `Tr`, `illum`,
-//! `map_Kd`, `map_Ks`, `map_Ke`, `map_Bump`/`bump`/`norm`. Other statements (`Ka`,
-//! `map_Ka`, `map_d`, `Pr`, ...) are ignored. Keywords are case-insensitive. Texture
+//! `map_Kd`, `map_Ks`, `map_Ke`, `map_Bump`/`bump`/`norm`, `map_d`. Other statements
+//! (`Ka`, `map_Ka`, `Pr`, ...) are ignored. Keywords are case-insensitive. Texture
 //! statements may carry options (`-s u v w`, `-o`, `-bm`, `-clamp on`, ...): they are
 //! skipped (a warning is logged for a scale or offset, which are not applied); the rest
 //! of the line is the file name, relative to the MTL file, spaces and `\` separators
@@ -58,6 +58,9 @@ pub struct MtlMaterial {
     pub map_ke: Option<MapRef>,
     /// `map_Bump`, `bump` or `norm`.
     pub map_normal: Option<MapRef>,
+    /// `map_d`: a coverage (opacity) map that cuts the surface out where it is below
+    /// one half.
+    pub map_d: Option<MapRef>,
 }
 
 /// Reads an MTL file.
@@ -176,6 +179,7 @@ pub fn parse_mtl(text: &str, path: &Path) -> Result<Vec<MtlMaterial>> {
             "map_ks" => m.map_ks = Some(map()?),
             "map_ke" => m.map_ke = Some(map()?),
             "map_bump" | "bump" | "norm" => m.map_normal = Some(map()?),
+            "map_d" => m.map_d = Some(map()?),
             _ => {}
         }
     }

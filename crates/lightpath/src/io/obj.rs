@@ -24,13 +24,13 @@ use std::sync::Arc;
 
 use glam::{UVec2, Vec2, Vec3};
 
-use super::image::{read_image, Transfer};
+use super::image::{read_coverage, read_image, Transfer};
 use super::mtl::{load_mtl, MapRef, MtlMaterial};
 use super::{LoadOptions, LoadedScene};
 use crate::camera::{Camera, FovAxis, Perspective};
 use crate::error::{Error, Location, Result};
 use crate::film::Image;
-use crate::geometry::{MeshData, Shape, TriangleMesh};
+use crate::geometry::{AlphaMask, MeshData, Shape, TriangleMesh};
 use crate::integrator::{Integrator, PathTracer};
 use crate::light::{Emission, Environment, Light};
 use crate::material::{Dielectric, Diffuse, Material, NormalMap, Principled};
@@ -232,6 +232,10 @@ pub const SCENE_SPP: u32 = 64;
 ///   - `map_Bump`, `bump` or `norm`: a tangent-space normal map (linear) around the
 ///     material, if the image looks like one (its mean colour is blue: z > 0.6 and
 ///     above x and y by 0.15); otherwise (a height map) it is ignored with a warning.
+///   - `map_d`: an alpha cutout (see [`crate::geometry::AlphaMask`]): the surface is
+///     there where the map (its alpha channel if it has one, else its first channel,
+///     read linearly, bilinear with repeat) is at least 0.5; elsewhere camera, bounce
+///     and shadow rays pass through (foliage and fences drawn on quads, as in Sponza).
 /// - **Camera.** A 640×480 perspective camera with a 40° vertical field of view
 ///   looking down −z at the centre of the bounds, far enough that the bounding sphere
 ///   fits in the image (+y up, as OBJ files are usually written).
@@ -341,7 +345,13 @@ pub fn load_scene(path: &Path, options: &LoadOptions) -> Result<LoadedScene> {
         if data.indices.is_empty() {
             continue;
         }
-        let mesh = TriangleMesh::new(data, true, accel).map_err(|m| Error::mesh(path, m))?;
+        let mut mesh = TriangleMesh::new(data, true, accel).map_err(|m| Error::mesh(path, m))?;
+        if let Some(map) = id.and_then(|i| materials[i].map_d.as_ref()) {
+            mesh.set_alpha(AlphaMask {
+                coverage: builder.coverage(map, &materials[id.unwrap()].file)?,
+                cutoff: 0.5,
+            });
+        }
         let mut instance = Instance::new(
             Arc::new(Shape::TriangleMesh(Arc::new(mesh))),
             Transform::IDENTITY,
@@ -450,6 +460,26 @@ impl MaterialBuilder {
         let image = Arc::new(image);
         self.images.insert(key, image.clone());
         Ok(image)
+    }
+
+    /// The coverage texture of a `map_d` (see [`read_coverage`]).
+    fn coverage(&mut self, map: &MapRef, mtl: &Path) -> Result<Arc<Texture>> {
+        let image = read_coverage(&map.path).map_err(|e| {
+            Error::scene(
+                Location {
+                    file: mtl.to_path_buf(),
+                    line: map.line,
+                    column: 1,
+                },
+                format!("cannot load map_d: {e}"),
+            )
+        })?;
+        Ok(Arc::new(Texture::Image(ImageTexture {
+            image: Arc::new(image),
+            border: BorderMode::Repeat,
+            filter: FilterMode::Bilinear,
+            exposure: 1.0,
+        })))
     }
 
     /// A map's texture, else the constant, else `default`.

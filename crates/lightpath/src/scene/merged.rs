@@ -57,7 +57,11 @@ impl MergedMesh {
             let Shape::TriangleMesh(m) = &*inst.shape else {
                 continue;
             };
-            if uses[&Arc::as_ptr(m)] != 1 || m.triangle_count() > MAX_MERGED_TRIANGLES {
+            // A cutout mesh keeps its own instance: its hits depend on its mask.
+            if uses[&Arc::as_ptr(m)] != 1
+                || m.triangle_count() > MAX_MERGED_TRIANGLES
+                || m.alpha().is_some()
+            {
                 continue;
             }
             let key = (
