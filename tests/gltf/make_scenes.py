@@ -9,8 +9,8 @@ hierarchy.gltf  the scene with an external buffer (hierarchy.bin), the base colo
 hierarchy.glb   the same scene in a binary container, every image in a buffer view
 defaults.gltf   one quad, no camera and no light (a data: URI buffer)
 alpha.gltf      alpha modes: a quad cut out by an RGBA texture (MASK), a quad of constant
-                alpha below its cutoff (MASK, invisible), one with alpha BLEND (rendered
-                opaque), and an opaque quad behind them all
+                alpha below its cutoff (MASK, invisible), one of alpha 0.3 with BLEND
+                (stochastic transparency), and an opaque quad behind them all
 
 The scene (glTF coordinates, +Y up): a root node (translated, turned 30 degrees about Y,
 scaled 1.5) with two children that use the same cube mesh (u16 indices, normals, UVs,

@@ -97,17 +97,47 @@ pub struct TriangleMesh {
     alpha: Option<AlphaMask>,
 }
 
-/// A cutout of a mesh's surface by a coverage texture: a point of a triangle is there
-/// where `coverage`'s first channel at its texture coordinates is at least `cutoff`
-/// (glTF's `alphaCutoff` rule), else closest-hit and shadow rays pass through it.
+/// A mesh's surface cut out or made partly transparent by a coverage texture (its
+/// first channel at the hit's texture coordinates, α): where the surface is not there,
+/// closest-hit and shadow rays pass through it as if the triangle were absent.
 ///
-/// A mesh with a cutout is traced triangle by triangle through its accelerator, with the
+/// A mesh with a mask is traced triangle by triangle through its accelerator, with the
 /// coverage looked up at every candidate hit, rather than in SIMD blocks and packets.
 /// Area lights on it emit from the whole triangles.
 #[derive(Debug, Clone)]
 pub struct AlphaMask {
     pub coverage: std::sync::Arc<crate::texture::Texture>,
-    pub cutoff: f32,
+    pub test: AlphaTest,
+}
+
+/// How an [`AlphaMask`]'s coverage decides whether a ray meets the surface.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum AlphaTest {
+    /// There where α is at least the cutoff (glTF's `MASK` with its `alphaCutoff`).
+    Cutoff(f32),
+    /// There with probability α (stochastic transparency: glTF's `BLEND`, Mitsuba's
+    /// `mask`): each ray meets the surface at a point when α exceeds a uniform number
+    /// hashed from the ray and the triangle, so a render averages to α times the
+    /// surface plus 1 − α times what lies behind it, and the same ray always gets the
+    /// same answer.
+    Stochastic,
+}
+
+/// A uniform number in [0, 1) hashed from a ray's origin and direction and a triangle
+/// (for [`AlphaTest::Stochastic`]).
+#[inline]
+fn alpha_hash(ray: &Ray, prim: u32) -> f32 {
+    fn mix(mut z: u64) -> u64 {
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+    let (o, d) = (ray.origin, ray.direction);
+    let mut h = 0x9e37_79b9_7f4a_7c15 ^ u64::from(prim);
+    for v in [o.x, o.y, o.z, d.x, d.y, d.z] {
+        h = mix(h ^ u64::from(v.to_bits()));
+    }
+    (h >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
 }
 
 /// Per-ray constants of the watertight test: the axis permutation and shear that make
@@ -429,13 +459,17 @@ impl TriangleMesh {
         self.alpha.as_ref()
     }
 
-    /// Whether the surface is there at barycentrics `(b1, b2)` of triangle `prim`:
-    /// always without an alpha mask, else where the coverage reaches the cutoff.
+    /// Whether `ray` meets the surface at barycentrics `(b1, b2)` of triangle `prim`:
+    /// always without an alpha mask, else as the mask's test says.
     #[inline]
-    fn covers(&self, prim: u32, b1: f32, b2: f32) -> bool {
-        match &self.alpha {
-            None => true,
-            Some(mask) => mask.coverage.eval(self.uv_at(prim, b1, b2)).x >= mask.cutoff,
+    fn covers(&self, ray: &Ray, prim: u32, b1: f32, b2: f32) -> bool {
+        let Some(mask) = &self.alpha else {
+            return true;
+        };
+        let alpha = mask.coverage.eval(self.uv_at(prim, b1, b2)).x;
+        match mask.test {
+            AlphaTest::Cutoff(cutoff) => alpha >= cutoff,
+            AlphaTest::Stochastic => alpha > alpha_hash(ray, prim),
         }
     }
 
@@ -596,7 +630,7 @@ impl TriangleMesh {
         self.accel.intersect(ray, stats, |prim, t_max| {
             let (p0, p1, p2) = self.vertices(prim);
             match intersect_triangle_watertight(&wr, ray.t_min, *t_max, p0, p1, p2) {
-                Some((t, _b0, b1, b2)) if self.covers(prim, b1, b2) => {
+                Some((t, _b0, b1, b2)) if self.covers(ray, prim, b1, b2) => {
                     *t_max = t;
                     best = Some(ShapeHit {
                         t,
@@ -1023,7 +1057,7 @@ impl TriangleMesh {
         self.accel.occluded(ray, stats, |prim| {
             let (p0, p1, p2) = self.vertices(prim);
             intersect_triangle_watertight(&wr, ray.t_min, ray.t_max, p0, p1, p2)
-                .is_some_and(|(_, _, b1, b2)| self.covers(prim, b1, b2))
+                .is_some_and(|(_, _, b1, b2)| self.covers(ray, prim, b1, b2))
         })
     }
 
@@ -1566,7 +1600,7 @@ mod tests {
                 filter: FilterMode::Nearest,
                 exposure: 1.0,
             })),
-            cutoff: 0.5,
+            test: AlphaTest::Cutoff(0.5),
         });
         let back = TriangleMesh::new(quad(-1.0), false, kind).unwrap();
         (cut, back)
@@ -1651,6 +1685,50 @@ mod tests {
                     packet_occluded[i], expect[i],
                     "{kind:?}: packet shadow ray {i}"
                 );
+            }
+        }
+    }
+
+    /// Stochastic transparency: over many rays, a quad of constant coverage 0.3 is met
+    /// by 30% of them (within four standard deviations), closest-hit and shadow rays
+    /// alike, and each ray gets the same answer from every query.
+    #[test]
+    fn stochastic_alpha_lets_the_uncovered_fraction_through() {
+        use crate::texture::Texture;
+        let data = MeshData {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y],
+            normals: Vec::new(),
+            uvs: Vec::new(),
+            indices: vec![[0, 1, 2], [0, 2, 3]],
+        };
+        for kind in [AccelKind::Bvh8, AccelKind::Bvh2] {
+            let mut mesh = TriangleMesh::new(data.clone(), false, kind).unwrap();
+            mesh.set_alpha(AlphaMask {
+                coverage: std::sync::Arc::new(Texture::Constant(Vec3::splat(0.3))),
+                test: AlphaTest::Stochastic,
+            });
+            let mut rng = Pcg32::new(11, 5);
+            let n = 20_000;
+            let rays: Vec<Ray> = (0..n)
+                .map(|_| {
+                    let target = Vec3::new(rng.next_f32(), rng.next_f32(), 0.0);
+                    let origin = Vec3::new(rng.next_f32(), rng.next_f32(), 1.0);
+                    Ray::new(origin, target - origin)
+                })
+                .collect();
+            let mut stats = RayStats::default();
+            let hits: Vec<bool> = rays
+                .iter()
+                .map(|r| mesh.intersect(r, &mut stats).is_some())
+                .collect();
+            let fraction = hits.iter().filter(|&&h| h).count() as f64 / n as f64;
+            let sigma = (0.3f64 * 0.7 / n as f64).sqrt();
+            assert!((fraction - 0.3).abs() < 4.0 * sigma, "{kind:?}: {fraction}");
+            let mut stream = vec![None; n];
+            mesh.intersect_stream(&rays, &mut stream, &mut stats);
+            for (i, ray) in rays.iter().enumerate() {
+                assert_eq!(mesh.occluded(ray, &mut stats), hits[i], "{kind:?}: ray {i}");
+                assert_eq!(stream[i].is_some(), hits[i], "{kind:?}: ray {i}");
             }
         }
     }

@@ -30,8 +30,10 @@
 //!   (`baseColorFactor`'s alpha × the base colour texture's alpha channel, bilinear
 //!   unless the sampler says nearest) is below `alphaCutoff` (0.5 by default): camera,
 //!   bounce and shadow rays pass through there (see [`crate::geometry::AlphaMask`]), and
-//!   a primitive of constant alpha below the cutoff is skipped; `BLEND` is rendered
-//!   opaque, with a warning; `occlusionTexture` is ignored (a path tracer computes occlusion);
+//!   a primitive of constant alpha below the cutoff is skipped; `BLEND` is stochastic
+//!   transparency: a ray meets the surface with probability alpha, so the image
+//!   averages to alpha × the surface + (1 − alpha) × what lies behind (no refraction;
+//!   [`crate::geometry::AlphaTest`]); `occlusionTexture` is ignored (a path tracer computes occlusion);
 //!   `MIRRORED_REPEAT` is rendered as repeat; minification filters are bilinear; every
 //!   texture reads `TEXCOORD_0`. A primitive without a material gets glTF's default
 //!   (white, metallic 1, roughness 1).
@@ -72,7 +74,7 @@ use super::{LoadOptions, LoadedScene};
 use crate::camera::{Camera, FovAxis, Orthographic, Perspective};
 use crate::error::{Error, Location, Result};
 use crate::film::Image;
-use crate::geometry::{AlphaMask, MeshData, Shape, TriangleMesh};
+use crate::geometry::{AlphaMask, AlphaTest, MeshData, Shape, TriangleMesh};
 use crate::integrator::{Integrator, PathTracer};
 use crate::light::{
     DirectionalLight, Emission, Environment, Light, PointLight, SpotLight, SpotProfile,
@@ -243,7 +245,7 @@ enum AlphaCut {
     Opaque,
     /// Cut out by a mask.
     Mask(AlphaMask),
-    /// A constant alpha below the cutoff: nothing is there.
+    /// A constant alpha that leaves nothing: nothing is there.
     Hidden,
 }
 
@@ -626,41 +628,49 @@ impl<'a> Loader<'a> {
         } else {
             None
         };
-        if m.alpha_mode() == ::gltf::material::AlphaMode::Blend {
-            log::warn!(
-                "{}: {} has alpha mode BLEND; it is rendered opaque (only MASK cuts \
-                 surfaces out)",
-                self.path.display(),
-                describe("material", m.index().unwrap_or(0), m.name()),
-            );
-        }
         let done = (material, emission);
         self.materials.insert(m.index(), done.clone());
         Ok(done)
     }
 
-    /// What a material's alpha does to a primitive's surface: glTF's `MASK` mode keeps
-    /// the points whose alpha (`baseColorFactor`'s alpha × the base colour texture's
-    /// alpha) is at least `alphaCutoff` (0.5 by default); the other modes keep all.
+    /// What a material's alpha (`baseColorFactor`'s alpha × the base colour texture's
+    /// alpha) does to a primitive's surface: `MASK` keeps the points where it is at
+    /// least `alphaCutoff` (0.5 by default), `BLEND` makes the surface transparent
+    /// stochastically (a ray meets it with probability alpha), `OPAQUE` keeps all.
     fn alpha_cut(&mut self, m: &::gltf::Material) -> Result<AlphaCut> {
-        if m.alpha_mode() != ::gltf::material::AlphaMode::Mask {
-            return Ok(AlphaCut::Opaque);
-        }
-        let cutoff = m.alpha_cutoff().unwrap_or(0.5);
-        if !cutoff.is_finite() {
-            let what = describe("material", m.index().unwrap_or(0), m.name());
-            return Err(self.error(format!("{what}: alphaCutoff {cutoff} is not finite")));
-        }
+        use ::gltf::material::AlphaMode;
+        let test = match m.alpha_mode() {
+            AlphaMode::Opaque => return Ok(AlphaCut::Opaque),
+            AlphaMode::Blend => AlphaTest::Stochastic,
+            AlphaMode::Mask => {
+                let cutoff = m.alpha_cutoff().unwrap_or(0.5);
+                if !cutoff.is_finite() {
+                    let what = describe("material", m.index().unwrap_or(0), m.name());
+                    return Err(self.error(format!("{what}: alphaCutoff {cutoff} is not finite")));
+                }
+                AlphaTest::Cutoff(cutoff)
+            }
+        };
         let pbr = m.pbr_metallic_roughness();
         let factor = pbr.base_color_factor()[3];
-        Ok(match pbr.base_color_texture() {
-            Some(info) => AlphaCut::Mask(AlphaMask {
-                coverage: self.texture(info.texture(), info.tex_coord(), Texel::Alpha(factor))?,
-                cutoff,
-            }),
-            None if factor >= cutoff => AlphaCut::Opaque,
-            None => AlphaCut::Hidden,
-        })
+        let coverage = match pbr.base_color_texture() {
+            Some(info) => self.texture(info.texture(), info.tex_coord(), Texel::Alpha(factor))?,
+            None => {
+                // A constant alpha: all there, none there, or (blend) partly there.
+                let there = match test {
+                    AlphaTest::Cutoff(cutoff) => Some(factor >= cutoff),
+                    AlphaTest::Stochastic if factor >= 1.0 => Some(true),
+                    AlphaTest::Stochastic if factor <= 0.0 => Some(false),
+                    AlphaTest::Stochastic => None,
+                };
+                match there {
+                    Some(true) => return Ok(AlphaCut::Opaque),
+                    Some(false) => return Ok(AlphaCut::Hidden),
+                    None => Arc::new(Texture::Constant(Vec3::splat(factor))),
+                }
+            }
+        };
+        Ok(AlphaCut::Mask(AlphaMask { coverage, test }))
     }
 
     /// The shape of one primitive, built once and shared by every node using its mesh;
@@ -702,8 +712,9 @@ impl<'a> Loader<'a> {
                     }
                     AlphaCut::Hidden => {
                         log::info!(
-                            "{}: {what}'s material is MASK with a constant alpha below its \
-                             cutoff; the primitive is invisible and skipped",
+                            "{}: {what}'s material has a constant alpha that leaves nothing \
+                             of it (below its MASK cutoff, or 0 with BLEND); the primitive \
+                             is invisible and skipped",
                             self.path.display()
                         );
                         None

@@ -30,7 +30,7 @@ use super::{LoadOptions, LoadedScene};
 use crate::camera::{Camera, FovAxis, Perspective};
 use crate::error::{Error, Location, Result};
 use crate::film::Image;
-use crate::geometry::{AlphaMask, MeshData, Shape, TriangleMesh};
+use crate::geometry::{AlphaMask, AlphaTest, MeshData, Shape, TriangleMesh};
 use crate::integrator::{Integrator, PathTracer};
 use crate::light::{Emission, Environment, Light};
 use crate::material::{Dielectric, Diffuse, Material, NormalMap, Principled};
@@ -349,7 +349,7 @@ pub fn load_scene(path: &Path, options: &LoadOptions) -> Result<LoadedScene> {
         if let Some(map) = id.and_then(|i| materials[i].map_d.as_ref()) {
             mesh.set_alpha(AlphaMask {
                 coverage: builder.coverage(map, &materials[id.unwrap()].file)?,
-                cutoff: 0.5,
+                test: AlphaTest::Cutoff(0.5),
             });
         }
         let mut instance = Instance::new(
