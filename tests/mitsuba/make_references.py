@@ -15,7 +15,7 @@ import subprocess
 import sys
 
 HERE = pathlib.Path(__file__).resolve().parent
-SCENES = ["box", "materials", "lights", "plastics", "curves", "bspline"]
+SCENES = ["box", "materials", "lights", "plastics", "curves", "bspline", "mask"]
 SPP = 16384
 
 
@@ -36,6 +36,15 @@ def textures():
     n = np.stack([0.5 * fx, 0.5 * fy, np.ones_like(fx)], axis=-1)
     n /= np.linalg.norm(n, axis=-1, keepdims=True)
     Image.fromarray(np.round((n * 0.5 + 0.5) * 255).astype(np.uint8)).save(HERE / "bumps.png")
+
+    # An opacity mask, 16x16, raw grey values 0, 128 and 255: a ring of full opacity
+    # with a half-opaque disc inside and a notch cut from its top right.
+    y, x = np.mgrid[0:16, 0:16]
+    r = np.hypot(x - 7.5, y - 7.5)
+    mask = np.where(r < 7.5, 255, 0)
+    mask = np.where(r < 4.0, 128, mask)
+    mask[(x > 9) & (y < 6)] = 0
+    Image.fromarray(mask.astype(np.uint8)).save(HERE / "leaf_mask.png")
 
 
 def curves():

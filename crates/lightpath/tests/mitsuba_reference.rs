@@ -13,7 +13,8 @@
 //! integrators, and the BSDFs diffuse, conductor, roughconductor (Beckmann and GGX,
 //! isotropic and anisotropic), plastic, roughplastic (Beckmann and GGX, nonlinear),
 //! one-sided diffuse seen from behind, dielectric, roughdielectric, thindielectric,
-//! blendbsdf, twosided and normalmap, with checkerboard and bitmap textures, and round
+//! blendbsdf, twosided, normalmap and mask (a bitmap and a constant opacity, shadow rays
+//! through them), with checkerboard and bitmap textures, and round
 //! linear curves (`linearcurve`: tapering strands, a wire with sharp joints placed by a
 //! scaling `to_world`) and cubic B-spline curves (`bsplinecurve`: wavy tapering strands
 //! and a thick arch).
@@ -108,6 +109,39 @@ fn curves_match_mitsuba() {
 }
 
 #[test]
+fn masks_match_mitsuba() {
+    check("mask", 1024);
+}
+
+/// The mask comparison can fail: the constant mask made opaque (opacity 0.3 → 1) is
+/// caught.
+#[test]
+fn the_mask_comparison_catches_an_opaque_surface() {
+    check_caught(
+        "mask",
+        r#"<float name="opacity" value="0.3"/>"#,
+        r#"<float name="opacity" value="1"/>"#,
+        "an opaque mask",
+    );
+}
+
+/// Asserts that scene `name` with `from` replaced by `to` (a deliberate mistake, `what`)
+/// fails the comparison with its Mitsuba reference.
+fn check_caught(name: &str, from: &str, to: &str, what: &str) {
+    let path = scene_path(name);
+    let text = std::fs::read_to_string(&path).unwrap();
+    let changed = text.replace(from, to);
+    assert_ne!(changed, text);
+    let loaded = load_scene_str(&changed, &path, &LoadOptions::default()).unwrap();
+    let (rel_mse, ratio) = compare(&render(&loaded, 1024), name);
+    eprintln!("{what}: relMSE {rel_mse:.3e}, mean ratio {ratio:.4}");
+    assert!(
+        rel_mse >= MAX_REL_MSE || (ratio - 1.0).abs() >= MAX_MEAN_DEVIATION,
+        "{what} passed: relMSE {rel_mse:.3e}, mean ratio {ratio:.4}"
+    );
+}
+
+#[test]
 fn bspline_curves_match_mitsuba() {
     check("bspline", 1024);
 }
@@ -116,19 +150,11 @@ fn bspline_curves_match_mitsuba() {
 /// (the control polygon instead of the smooth curve) are caught.
 #[test]
 fn the_bspline_comparison_catches_the_control_polygon() {
-    let path = scene_path("bspline");
-    let text = std::fs::read_to_string(&path).unwrap();
-    let changed = text.replace(
+    check_caught(
+        "bspline",
         r#"<shape type="bsplinecurve">"#,
         r#"<shape type="linearcurve">"#,
-    );
-    assert_ne!(changed, text);
-    let loaded = load_scene_str(&changed, &path, &LoadOptions::default()).unwrap();
-    let (rel_mse, ratio) = compare(&render(&loaded, 1024), "bspline");
-    eprintln!("B-splines as polygons: relMSE {rel_mse:.3e}, mean ratio {ratio:.4}");
-    assert!(
-        rel_mse >= MAX_REL_MSE || (ratio - 1.0).abs() >= MAX_MEAN_DEVIATION,
-        "B-splines as polygons passed: relMSE {rel_mse:.3e}, mean ratio {ratio:.4}"
+        "B-splines as polygons",
     );
 }
 

@@ -49,6 +49,13 @@
 //!   `principled` maps `base_color`, `roughness`, `metallic`, `specular` (other
 //!   parameters are errors).
 //!   `twosided` with two BSDFs uses the first in front, the second behind.
+//!   `mask` (the shape's outermost BSDF, on meshes and rectangles) makes the surface
+//!   transparent with probability 1 − `opacity` (its first channel; default 0.5) at
+//!   each point: rays pass through it there ([`crate::geometry::AlphaTest::Stochastic`]),
+//!   shadow rays included; the nested BSDF scatters the rest. (Mitsuba 3.9.1 reads a
+//!   `checkerboard` opacity with its two colours swapped, its single-channel lookup
+//!   disagreeing with its colour one: there it renders the complement of the pattern
+//!   that the same checkerboard shows as a colour; constant and bitmap opacities agree.)
 //! - Emitters: `directional` `direction` is where the light travels (negated for ours).
 //!   `envmap` follows Mitsuba's lat-long mapping: a local direction d reads
 //!   u = atan2(d.x, −d.z)/2π, v = acos(d.y)/π; ours is the same with x and z swapped,
@@ -67,8 +74,8 @@ use crate::camera::{Camera, FovAxis, Orthographic, Perspective, ThinLens};
 use crate::error::{Error, Location, Result};
 use crate::film::Filter;
 use crate::geometry::{
-    Csg, CsgNode, CsgOp, CubicBasis, CubicCurves, Cuboid, Cylinder, Disk, LinearCurves, Rectangle,
-    Shape, Solid, Sphere, TriangleMesh,
+    AlphaMask, AlphaTest, Csg, CsgNode, CsgOp, CubicBasis, CubicCurves, Cuboid, Cylinder, Disk,
+    LinearCurves, MeshData, Rectangle, Shape, Solid, Sphere, TriangleMesh,
 };
 use crate::integrator::{Aov, AovVariable, Direct, Integrator, PathTracer};
 use crate::light::{
@@ -404,6 +411,36 @@ const BSDFS: &[&str] = &[
     "normalmap",
     "hair",
 ];
+
+/// Where a `mask` BSDF applies.
+const MASK_SHAPES: &str =
+    "a `mask` BSDF is supported on meshes (`obj`, `ply`) and rectangles, as the shape's outermost BSDF";
+
+/// `shape` with its surface masked: a mesh (a copy: the file's mesh may be shared), or a
+/// rectangle as a two-triangle mesh with the rectangle's parameterisation; `None` for
+/// other shapes.
+fn masked_shape(shape: &Shape, mask: AlphaMask) -> Option<Shape> {
+    let mut mesh = match shape {
+        Shape::TriangleMesh(m) => (**m).clone(),
+        Shape::Rectangle(_) => {
+            let data = MeshData {
+                positions: vec![
+                    Vec3::new(-1.0, -1.0, 0.0),
+                    Vec3::new(1.0, -1.0, 0.0),
+                    Vec3::new(1.0, 1.0, 0.0),
+                    Vec3::new(-1.0, 1.0, 0.0),
+                ],
+                normals: Vec::new(),
+                uvs: vec![Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y],
+                indices: vec![[0, 1, 2], [0, 2, 3]],
+            };
+            TriangleMesh::new(data, false, crate::accel::AccelKind::Bvh8).ok()?
+        }
+        _ => return None,
+    };
+    mesh.set_alpha(mask);
+    Some(Shape::TriangleMesh(Arc::new(mesh)))
+}
 
 fn unknown_type(node: &Node, known: &[&str]) -> Error {
     let t = node.type_name.as_deref().unwrap_or("");
@@ -984,7 +1021,16 @@ impl Builder {
                     if material.is_some() {
                         return Err(c.error("the shape has more than one <bsdf>"));
                     }
-                    material = Some(self.material(&c)?);
+                    if c.type_name.as_deref() == Some("mask") {
+                        // A mask acts on the surface itself, not on its scattering.
+                        let (inner, mask) = self.mask(&c)?;
+                        let shape = masked_shape(&instance.shape, mask)
+                            .ok_or_else(|| c.error(MASK_SHAPES))?;
+                        instance = Instance::new(Arc::new(shape), placement);
+                        material = Some(inner);
+                    } else {
+                        material = Some(self.material(&c)?);
+                    }
                 }
                 "emitter" => {
                     if c.type_name.as_deref() != Some("area") {
@@ -1405,6 +1451,29 @@ impl Builder {
             (None, Some(u), Some(v)) => Ok((r(u), r(v), dist)),
             _ => Err(node.error("give `alpha` or both `alpha_u` and `alpha_v`")),
         }
+    }
+
+    /// A `mask` BSDF: the nested BSDF, and the `opacity` (default 0.5, its first channel
+    /// as a grey value) as stochastic transparency of the surface.
+    fn mask(&mut self, node: &Rc<Node>) -> Result<(Arc<Material>, AlphaMask)> {
+        self.check_children(node, &["texture", "bsdf"])?;
+        let coverage = self.slot(node, "opacity", Vec3::splat(0.5))?;
+        let [inner] = self
+            .bsdfs(node)?
+            .try_into()
+            .map_err(|_: Vec<_>| node.error("a `mask` BSDF needs exactly one nested <bsdf>"))?;
+        if inner.type_name.as_deref() == Some("mask") {
+            return Err(inner.error("a `mask` BSDF cannot be nested in another"));
+        }
+        let material = self.material(&inner)?;
+        node.check_all_used()?;
+        Ok((
+            material,
+            AlphaMask {
+                coverage,
+                test: AlphaTest::Stochastic,
+            },
+        ))
     }
 
     fn bsdfs(&self, node: &Node) -> Result<Vec<Rc<Node>>> {
@@ -1910,6 +1979,50 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(err.contains("must refer to a shapegroup"), "{err}");
+    }
+
+    /// A `mask` cuts a rectangle's surface (a mesh with the rectangle's parameterisation
+    /// then): an opacity of 0 lets every ray through, 1 none; on a shape it cannot cut,
+    /// without a nested BSDF, or nested in another mask, it is an error naming the line.
+    #[test]
+    fn mask_cuts_rectangles_and_meshes_only() {
+        let quad = |opacity: &str| {
+            scene_with(&format!(
+                r#"<shape type="rectangle"><bsdf type="mask"><float name="opacity" value="{opacity}"/>
+                   <bsdf type="diffuse"/></bsdf></shape>"#
+            ))
+        };
+        let ray = crate::math::Ray::new(Vec3::new(0.2, 0.3, 1.0), -Vec3::Z);
+        let clear = load(&quad("0"), &[]).unwrap();
+        assert!(clear.scene.intersect(&ray).is_none());
+        let opaque = load(&quad("1"), &[]).unwrap();
+        let si = opaque.scene.intersect(&ray).unwrap();
+        assert!(
+            (si.uv - Vec2::new(0.6, 0.65)).length() < 1e-5,
+            "{:?}",
+            si.uv
+        );
+        assert!(matches!(
+            opaque.scene.material(&si),
+            Some(Material::OneSided(_))
+        ));
+        for (body, message) in [
+            (
+                r#"<shape type="sphere"><bsdf type="mask"><bsdf type="diffuse"/></bsdf></shape>"#,
+                "supported on meshes",
+            ),
+            (
+                r#"<shape type="rectangle"><bsdf type="mask"><float name="opacity" value="0.5"/></bsdf></shape>"#,
+                "exactly one nested",
+            ),
+            (
+                r#"<shape type="rectangle"><bsdf type="mask"><bsdf type="mask"><bsdf type="diffuse"/></bsdf></bsdf></shape>"#,
+                "cannot be nested",
+            ),
+        ] {
+            let err = load(&scene_with(body), &[]).unwrap_err().to_string();
+            assert!(err.contains("m.xml:") && err.contains(message), "{err}");
+        }
     }
 
     /// Unsupported plugins and parameters are errors naming the plugin and line; with
