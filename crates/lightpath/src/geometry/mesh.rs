@@ -104,6 +104,21 @@ pub struct TriangleMesh {
 /// A mesh with a mask is traced triangle by triangle through its accelerator, with the
 /// coverage looked up at every candidate hit, rather than in SIMD blocks and packets.
 /// Area lights on it emit from the whole triangles.
+///
+/// Scene files make one from a glTF material's `alphaMode` (`MASK` with `alphaCutoff`:
+/// [`AlphaTest::Cutoff`]; `BLEND`: [`AlphaTest::Stochastic`]), an MTL `map_d` (a cutoff
+/// of one half), or a Mitsuba `mask` BSDF (stochastic):
+///
+/// ```xml
+/// <shape type="rectangle">
+///     <bsdf type="mask">
+///         <texture name="opacity" type="bitmap">
+///             <string name="filename" value="leaf_mask.png"/>
+///         </texture>
+///         <bsdf type="twosided"><bsdf type="diffuse"/></bsdf>
+///     </bsdf>
+/// </shape>
+/// ```
 #[derive(Debug, Clone)]
 pub struct AlphaMask {
     pub coverage: std::sync::Arc<crate::texture::Texture>,
