@@ -29,7 +29,7 @@ use glam::{Vec2, Vec3, Vec3A};
 /// inlined. No multiplication and addition are fused (the `crate::cpu` tiers enable
 /// FMA, but Rust never contracts on its own), so all expansions round alike.
 macro_rules! intersect_blocks {
-    ($mesh:expr, $ray:expr, $stats:expr, $avx2:expr) => {{
+    ($mesh:expr, $ray:expr, $stats:expr, $avx2:expr, $masked:expr) => {{
         let (mesh, ray): (&TriangleMesh, &Ray) = ($mesh, $ray);
         // The watertight test's constants are set up at the first leaf, so rays that
         // reach none (most of those that miss) never pay for them.
@@ -41,7 +41,14 @@ macro_rules! intersect_blocks {
         mesh.accel
             .intersect_leaves(ray, $stats, prefetch, |first, count, t_max| {
                 let wr = &*lazy_wr.get_or_insert_with(|| WatertightRay::new(ray));
-                mesh.leaf_closest::<{ $avx2 }>(wr, ray.t_min, first, count, t_max, &mut closest)
+                mesh.leaf_closest::<{ $avx2 }, { $masked }>(
+                    wr,
+                    ray,
+                    first,
+                    count,
+                    t_max,
+                    &mut closest,
+                )
             });
         closest.map(|(t, at, uv)| ShapeHit {
             t,
@@ -53,14 +60,14 @@ macro_rules! intersect_blocks {
 
 /// The any-hit query over a mesh's SIMD blocks (see [`intersect_blocks`]).
 macro_rules! occluded_blocks {
-    ($mesh:expr, $ray:expr, $stats:expr, $avx2:expr) => {{
+    ($mesh:expr, $ray:expr, $stats:expr, $avx2:expr, $masked:expr) => {{
         let (mesh, ray): (&TriangleMesh, &Ray) = ($mesh, $ray);
         let prefetch = |first| mesh.prefetch_block(first);
         let mut lazy_wr = None;
         mesh.accel
             .occluded_leaves(ray, $stats, prefetch, |first, count| {
                 let wr = &*lazy_wr.get_or_insert_with(|| WatertightRay::new(ray));
-                mesh.leaf_blocks::<{ $avx2 }>(wr, ray, first, count)
+                mesh.leaf_blocks::<{ $avx2 }, { $masked }>(wr, ray, first, count)
             })
     }};
 }
@@ -101,9 +108,10 @@ pub struct TriangleMesh {
 /// first channel at the hit's texture coordinates, α): where the surface is not there,
 /// closest-hit and shadow rays pass through it as if the triangle were absent.
 ///
-/// A mesh with a mask is traced triangle by triangle through its accelerator, with the
-/// coverage looked up at every candidate hit, rather than in SIMD blocks and packets.
-/// Area lights on it emit from the whole triangles.
+/// A masked mesh looks the coverage up at every candidate hit: the SIMD leaf tests drop
+/// the lanes whose hit the mask removes (so the nearest remaining lane wins, and a
+/// shadow ray is blocked only by a kept one); streams and packets go ray by ray. Area lights on a
+/// masked mesh emit from the whole triangles.
 ///
 /// Scene files make one from a glTF material's `alphaMode` (`MASK` with `alphaCutoff`:
 /// [`AlphaTest::Cutoff`]; `BLEND`: [`AlphaTest::Stochastic`]), an MTL `map_d` (a cutoff
@@ -462,10 +470,8 @@ impl TriangleMesh {
         };
     }
 
-    /// Cuts the surface by an alpha mask (see [`AlphaMask`]); the SIMD blocks are
-    /// dropped, as the masked traversal tests triangle by triangle.
+    /// Cuts the surface by an alpha mask (see [`AlphaMask`]).
     pub fn set_alpha(&mut self, mask: AlphaMask) {
-        self.blocks = Vec::new();
         self.alpha = Some(mask);
     }
 
@@ -628,6 +634,9 @@ impl TriangleMesh {
     #[inline(always)]
     pub fn intersect(&self, ray: &Ray, stats: &mut RayStats) -> Option<ShapeHit> {
         if !self.blocks.is_empty() {
+            if self.alpha.is_some() {
+                return self.intersect_masked(ray, stats);
+            }
             #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
             if self.avx512 {
                 // SAFETY: `avx512` is set only where the processor supports it.
@@ -638,7 +647,7 @@ impl TriangleMesh {
                 // SAFETY: `avx2` is set only where the processor has the AVX2 tier.
                 return unsafe { self.intersect_blocks_avx2(ray, stats) };
             }
-            return intersect_blocks!(self, ray, stats, false);
+            return intersect_blocks!(self, ray, stats, false, false);
         }
         let wr = WatertightRay::new(ray);
         let mut best = None;
@@ -664,14 +673,14 @@ impl TriangleMesh {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     unsafe fn intersect_blocks_avx2(&self, ray: &Ray, stats: &mut RayStats) -> Option<ShapeHit> {
-        intersect_blocks!(self, ray, stats, true)
+        intersect_blocks!(self, ray, stats, true, false)
     }
 
     /// [`TriangleMesh::occluded`] over the SIMD blocks, compiled for AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     unsafe fn occluded_blocks_avx2(&self, ray: &Ray, stats: &mut RayStats) -> bool {
-        occluded_blocks!(self, ray, stats, true)
+        occluded_blocks!(self, ray, stats, true, false)
     }
 
     /// [`TriangleMesh::intersect`] over the SIMD blocks, compiled for AVX-512 (see
@@ -679,14 +688,78 @@ impl TriangleMesh {
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
     unsafe fn intersect_blocks_avx512(&self, ray: &Ray, stats: &mut RayStats) -> Option<ShapeHit> {
-        intersect_blocks!(self, ray, stats, true)
+        intersect_blocks!(self, ray, stats, true, false)
     }
 
     /// [`TriangleMesh::occluded`] over the SIMD blocks, compiled for AVX-512.
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
     unsafe fn occluded_blocks_avx512(&self, ray: &Ray, stats: &mut RayStats) -> bool {
-        occluded_blocks!(self, ray, stats, true)
+        occluded_blocks!(self, ray, stats, true, false)
+    }
+
+    /// [`TriangleMesh::intersect`] over the SIMD blocks of a masked mesh (out of line:
+    /// the unmasked leaf tests stay free of the mask's checks).
+    #[cold]
+    #[inline(never)]
+    fn intersect_masked(&self, ray: &Ray, stats: &mut RayStats) -> Option<ShapeHit> {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: `avx2` is set only where the processor has the AVX2 tier.
+            return unsafe { self.intersect_masked_avx2(ray, stats) };
+        }
+        intersect_blocks!(self, ray, stats, false, true)
+    }
+
+    /// [`TriangleMesh::intersect_masked`] compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    unsafe fn intersect_masked_avx2(&self, ray: &Ray, stats: &mut RayStats) -> Option<ShapeHit> {
+        intersect_blocks!(self, ray, stats, true, true)
+    }
+
+    /// [`TriangleMesh::occluded`] over the SIMD blocks of a masked mesh.
+    #[cold]
+    #[inline(never)]
+    fn occluded_masked(&self, ray: &Ray, stats: &mut RayStats) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: `avx2` is set only where the processor has the AVX2 tier.
+            return unsafe { self.occluded_masked_avx2(ray, stats) };
+        }
+        occluded_blocks!(self, ray, stats, false, true)
+    }
+
+    /// [`TriangleMesh::occluded_masked`] compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    unsafe fn occluded_masked_avx2(&self, ray: &Ray, stats: &mut RayStats) -> bool {
+        occluded_blocks!(self, ray, stats, true, true)
+    }
+
+    /// The lanes of `bits` (hits of a block pair: lanes 0-3 in block `blocks[0]`, 4-7 in
+    /// `blocks[1]`) where `ray` meets the surface under the alpha mask.
+    #[cold]
+    #[inline(never)]
+    fn alpha_lanes<T: std::ops::Index<usize, Output = f32>>(
+        &self,
+        ray: &Ray,
+        blocks: [usize; 2],
+        bits: u32,
+        b1: &T,
+        b2: &T,
+    ) -> u32 {
+        let mut kept = 0;
+        let mut rest = bits;
+        while rest != 0 {
+            let lane = rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+            let prim = self.blocks[blocks[lane / BLOCK]].prim[lane % BLOCK];
+            if self.covers(ray, prim, b1[lane], b2[lane]) {
+                kept |= 1 << lane;
+            }
+        }
+        kept
     }
 
     /// The closest-hit test of a whole leaf (positions `first..first + count` of the
@@ -694,15 +767,16 @@ impl TriangleMesh {
     /// `closest` for a closer one.
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn leaf_closest<const AVX2_CALLER: bool>(
+    fn leaf_closest<const AVX2_CALLER: bool, const MASKED: bool>(
         &self,
         wr: &WatertightRay,
-        t_min: f32,
+        ray: &Ray,
         first: u32,
         count: u32,
         t_max: &mut f32,
         closest: &mut Option<(f32, usize, Vec2)>,
     ) -> bool {
+        let t_min = ray.t_min;
         let mut found = false;
         let mut b = first as usize / BLOCK;
         let end = (first + count).div_ceil(BLOCK as u32) as usize;
@@ -717,13 +791,19 @@ impl TriangleMesh {
                 // SAFETY: `avx2` is set only where the processor has the AVX2 tier.
                 let mut hits = unsafe { intersect_pair::<AVX2_CALLER>(x, y, wr, t_min, *t_max) };
                 hits.0 &= if last { 0xf } else { 0xff };
+                if MASKED {
+                    hits.0 = self.alpha_lanes(ray, [b, b + 1], hits.0, &hits.2, &hits.3);
+                }
                 found |= take_nearest(b, &hits, t_max, closest);
                 b += 2;
             }
             return found;
         }
         while b < end {
-            let hits = self.blocks[b].intersect(wr, t_min, *t_max);
+            let mut hits = self.blocks[b].intersect(wr, t_min, *t_max);
+            if MASKED {
+                hits.0 = self.alpha_lanes(ray, [b, b], hits.0, &hits.2, &hits.3);
+            }
             found |= take_nearest(b, &hits, t_max, closest);
             b += 1;
         }
@@ -733,7 +813,7 @@ impl TriangleMesh {
     /// Whether a triangle of a whole leaf blocks `ray` (the any-hit test of the leaf at
     /// positions `first..first + count`).
     #[inline(always)]
-    fn leaf_blocks<const AVX2_CALLER: bool>(
+    fn leaf_blocks<const AVX2_CALLER: bool, const MASKED: bool>(
         &self,
         wr: &WatertightRay,
         ray: &Ray,
@@ -746,11 +826,13 @@ impl TriangleMesh {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             while b < end {
-                let y = if b + 1 == end { b } else { b + 1 };
-                let (x, y) = (&self.blocks[b], &self.blocks[y]);
+                let by = if b + 1 == end { b } else { b + 1 };
+                let (x, y) = (&self.blocks[b], &self.blocks[by]);
                 // SAFETY: `avx2` is set only where the processor has the AVX2 tier.
                 let hits = unsafe { intersect_pair::<AVX2_CALLER>(x, y, wr, ray.t_min, ray.t_max) };
-                if hits.0 != 0 {
+                if hits.0 != 0
+                    && (!MASKED || self.alpha_lanes(ray, [b, by], hits.0, &hits.2, &hits.3) != 0)
+                {
                     return true;
                 }
                 b += 2;
@@ -758,7 +840,10 @@ impl TriangleMesh {
             return false;
         }
         while b < end {
-            if self.blocks[b].intersect(wr, ray.t_min, ray.t_max).0 != 0 {
+            let hits = self.blocks[b].intersect(wr, ray.t_min, ray.t_max);
+            if hits.0 != 0
+                && (!MASKED || self.alpha_lanes(ray, [b, b], hits.0, &hits.2, &hits.3) != 0)
+            {
                 return true;
             }
             b += 1;
@@ -777,8 +862,8 @@ impl TriangleMesh {
         stats: &mut RayStats,
     ) {
         assert_eq!(rays.len(), hits.len(), "one hit per ray");
-        let (Accel::Bvh8(bvh), Some(order), true) =
-            (&self.accel, self.accel.leaf_order(), self.alpha.is_none())
+        let (Accel::Bvh8(bvh), Some(order), None) =
+            (&self.accel, self.accel.leaf_order(), &self.alpha)
         else {
             for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
                 *hit = self.intersect(ray, stats);
@@ -797,7 +882,7 @@ impl TriangleMesh {
             |_| -> State { (None, None) },
             |(wr, closest), ray, first, count, t_max| {
                 let wr = &*wr.get_or_insert_with(|| WatertightRay::new(ray));
-                self.leaf_closest::<false>(wr, ray.t_min, first, count, t_max, closest)
+                self.leaf_closest::<false, false>(wr, ray, first, count, t_max, closest)
             },
             |i, (_, closest), _| {
                 hits[i] = closest.map(|(t, at, uv)| ShapeHit {
@@ -814,7 +899,7 @@ impl TriangleMesh {
     /// 8-wide BVH (see [`TriangleMesh::intersect_stream`]).
     pub fn occluded_stream(&self, rays: &[Ray], occluded: &mut [bool], stats: &mut RayStats) {
         assert_eq!(rays.len(), occluded.len(), "one answer per ray");
-        let (Accel::Bvh8(bvh), true) = (&self.accel, self.alpha.is_none()) else {
+        let (Accel::Bvh8(bvh), None) = (&self.accel, &self.alpha) else {
             for (ray, o) in rays.iter().zip(occluded.iter_mut()) {
                 *o = self.occluded(ray, stats);
             }
@@ -827,7 +912,7 @@ impl TriangleMesh {
             |_| None,
             |wr: &mut Option<WatertightRay>, ray, first, count| {
                 let wr = &*wr.get_or_insert_with(|| WatertightRay::new(ray));
-                self.leaf_blocks::<false>(wr, ray, first, count)
+                self.leaf_blocks::<false, false>(wr, ray, first, count)
             },
             |i, _, any| occluded[i] = any,
         );
@@ -992,10 +1077,10 @@ impl TriangleMesh {
     ) -> u16 {
         each_ray_alone::<ANY_HIT>(rays, mask, t_max, found, |wr, ray, closest| {
             if ANY_HIT {
-                return self.leaf_blocks::<true>(wr, ray, first, count);
+                return self.leaf_blocks::<true, false>(wr, ray, first, count);
             }
             let mut t = ray.t_max;
-            self.leaf_closest::<true>(wr, ray.t_min, first, count, &mut t, closest)
+            self.leaf_closest::<true, false>(wr, ray, first, count, &mut t, closest)
         })
     }
 
@@ -1020,11 +1105,11 @@ impl TriangleMesh {
         each_ray_alone::<ANY_HIT>(rays, mask, t_max, found, |wr, ray, closest| {
             if ANY_HIT {
                 return bvh.occluded_leaves_from(ray, (node, 0), stats, prefetch, |f, c| {
-                    self.leaf_blocks::<true>(wr, ray, f, c)
+                    self.leaf_blocks::<true, false>(wr, ray, f, c)
                 });
             }
             bvh.intersect_leaves_from(ray, (node, 0), stats, prefetch, |f, c, t| {
-                self.leaf_closest::<true>(wr, ray.t_min, f, c, t, closest)
+                self.leaf_closest::<true, false>(wr, ray, f, c, t, closest)
             })
         })
     }
@@ -1056,6 +1141,9 @@ impl TriangleMesh {
     #[inline(always)]
     pub fn occluded(&self, ray: &Ray, stats: &mut RayStats) -> bool {
         if !self.blocks.is_empty() {
+            if self.alpha.is_some() {
+                return self.occluded_masked(ray, stats);
+            }
             #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
             if self.avx512 {
                 // SAFETY: `avx512` is set only where the processor supports it.
@@ -1066,7 +1154,7 @@ impl TriangleMesh {
                 // SAFETY: `avx2` is set only where the processor has the AVX2 tier.
                 return unsafe { self.occluded_blocks_avx2(ray, stats) };
             }
-            return occluded_blocks!(self, ray, stats, false);
+            return occluded_blocks!(self, ray, stats, false, false);
         }
         let wr = WatertightRay::new(ray);
         self.accel.occluded(ray, stats, |prim| {
