@@ -99,8 +99,7 @@ pub struct TriangleMesh {
     /// instance flattened into render space keeps its corners, and so its texture
     /// parameterisation, and marks the triangle instead); empty when none is.
     flipped: Vec<bool>,
-    /// An alpha cutout (glTF's `alphaMode` `MASK`): where the coverage at a hit is below
-    /// the cutoff, rays pass through as if the triangle were not there.
+    /// Where the surface is not there for rays (see [`AlphaMask`]); `None`: everywhere.
     alpha: Option<AlphaMask>,
 }
 

@@ -701,12 +701,16 @@ impl<'a> Loader<'a> {
             if data.indices.is_empty() {
                 None
             } else {
-                let mut mesh =
+                // The cut first: a hidden primitive needs no BVH.
+                let cut = self.alpha_cut(&primitive.material())?;
+                let build = || {
                     TriangleMesh::new(data, true, self.options.accel.unwrap_or_default())
-                        .map_err(|m| self.error(format!("{what}: {m}")))?;
-                match self.alpha_cut(&primitive.material())? {
-                    AlphaCut::Opaque => Some(Arc::new(Shape::TriangleMesh(Arc::new(mesh)))),
+                        .map_err(|m| self.error(format!("{what}: {m}")))
+                };
+                match cut {
+                    AlphaCut::Opaque => Some(Arc::new(Shape::TriangleMesh(Arc::new(build()?)))),
                     AlphaCut::Mask(mask) => {
+                        let mut mesh = build()?;
                         mesh.set_alpha(mask);
                         Some(Arc::new(Shape::TriangleMesh(Arc::new(mesh))))
                     }

@@ -417,9 +417,9 @@ const MASK_SHAPES: &str =
     "a `mask` BSDF is supported on meshes (`obj`, `ply`) and rectangles, as the shape's outermost BSDF";
 
 /// `shape` with its surface masked: a mesh (a copy: the file's mesh may be shared), or a
-/// rectangle as a two-triangle mesh with the rectangle's parameterisation; `None` for
-/// other shapes.
-fn masked_shape(shape: &Shape, mask: AlphaMask) -> Option<Shape> {
+/// rectangle as a two-triangle mesh over `accel` with the rectangle's parameterisation;
+/// `None` for other shapes.
+fn masked_shape(shape: &Shape, mask: AlphaMask, accel: crate::accel::AccelKind) -> Option<Shape> {
     let mut mesh = match shape {
         Shape::TriangleMesh(m) => (**m).clone(),
         Shape::Rectangle(_) => {
@@ -434,7 +434,7 @@ fn masked_shape(shape: &Shape, mask: AlphaMask) -> Option<Shape> {
                 uvs: vec![Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y],
                 indices: vec![[0, 1, 2], [0, 2, 3]],
             };
-            TriangleMesh::new(data, false, crate::accel::AccelKind::Bvh8).ok()?
+            TriangleMesh::new(data, false, accel).ok()?
         }
         _ => return None,
     };
@@ -1024,7 +1024,8 @@ impl Builder {
                     if c.type_name.as_deref() == Some("mask") {
                         // A mask acts on the surface itself, not on its scattering.
                         let (inner, mask) = self.mask(&c)?;
-                        let shape = masked_shape(&instance.shape, mask)
+                        let accel = self.options.accel.unwrap_or_default();
+                        let shape = masked_shape(&instance.shape, mask, accel)
                             .ok_or_else(|| c.error(MASK_SHAPES))?;
                         instance = Instance::new(Arc::new(shape), placement);
                         material = Some(inner);

@@ -346,11 +346,13 @@ pub fn load_scene(path: &Path, options: &LoadOptions) -> Result<LoadedScene> {
             continue;
         }
         let mut mesh = TriangleMesh::new(data, true, accel).map_err(|m| Error::mesh(path, m))?;
-        if let Some(map) = id.and_then(|i| materials[i].map_d.as_ref()) {
-            mesh.set_alpha(AlphaMask {
-                coverage: builder.coverage(map, &materials[id.unwrap()].file)?,
-                test: AlphaTest::Cutoff(0.5),
-            });
+        if let Some(m) = id.map(|i| &materials[i]) {
+            if let Some(map) = &m.map_d {
+                mesh.set_alpha(AlphaMask {
+                    coverage: builder.coverage(map, &m.file)?,
+                    test: AlphaTest::Cutoff(0.5),
+                });
+            }
         }
         let mut instance = Instance::new(
             Arc::new(Shape::TriangleMesh(Arc::new(mesh))),
