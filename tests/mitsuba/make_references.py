@@ -2,6 +2,7 @@
 
     python3 tests/mitsuba/make_references.py textures        # needs numpy + pillow
     python3 tests/mitsuba/make_references.py curves          # the curve files
+    python3 tests/mitsuba/make_references.py serialized      # meshes.serialized
     python3 tests/mitsuba/make_references.py references VENV # needs a venv with mitsuba 3
 
 The references are rendered with Mitsuba 3.9.1 (scalar_rgb) through
@@ -15,7 +16,7 @@ import subprocess
 import sys
 
 HERE = pathlib.Path(__file__).resolve().parent
-SCENES = ["box", "materials", "lights", "plastics", "curves", "bspline", "mask"]
+SCENES = ["box", "materials", "lights", "plastics", "curves", "bspline", "mask", "serialized"]
 SPP = 16384
 
 
@@ -98,6 +99,58 @@ def curves():
     (HERE / "bspline_strands.txt").write_text("\n".join(lines) + "\n")
 
 
+def serialized():
+    import math
+    import struct
+    import zlib
+
+    def record(flags, positions, normals, uvs, triangles, double=False):
+        """One mesh of Mitsuba's serialized format, version 4."""
+        fmt = "<d" if double else "<f"
+        flags |= 0x2000 if double else 0x1000
+        body = struct.pack("<I", flags) + b"mesh\0"
+        body += struct.pack("<QQ", len(positions), len(triangles))
+        for array in (positions, normals, uvs):
+            body += b"".join(struct.pack(fmt, x) for v in array for x in v)
+        body += b"".join(struct.pack("<III", *t) for t in triangles)
+        return struct.pack("<HH", 0x041C, 4) + zlib.compress(body)
+
+    # Mesh 0: a UV sphere of 12 x 8 quads with no normals (the readers compute smooth
+    # ones), its poles pinched, placed by a non-uniform scale in the scene.
+    positions, triangles = [], []
+    rows, cols = 8, 12
+    for i in range(rows + 1):
+        theta = math.pi * i / rows
+        for j in range(cols):
+            phi = 2 * math.pi * j / cols
+            positions.append((math.sin(theta) * math.cos(phi), math.cos(theta),
+                              math.sin(theta) * math.sin(phi)))
+    for i in range(rows):
+        for j in range(cols):
+            a, b = i * cols + j, i * cols + (j + 1) % cols
+            c, d = a + cols, b + cols
+            if i > 0:
+                triangles.append((a, b, c))
+            if i < rows - 1:
+                triangles.append((b, d, c))
+    sphere = record(0, positions, [], [], triangles)
+    # Mesh 1: a quad with normals and texture coordinates, in double precision.
+    quad = record(0x3, [(-1, 0, -1), (1, 0, -1), (1, 0, 1), (-1, 0, 1)],
+                  [(0, 1, 0)] * 4, [(0, 0), (2, 0), (2, 2), (0, 2)],
+                  [(0, 2, 1), (0, 3, 2)], double=True)
+    # Mesh 2: a tent, two triangles folded along a ridge, with smooth normals in the
+    # file that the scene discards (face_normals).
+    tent = record(0x1, [(-1, 0, -1), (1, 0, -1), (0, 1, 0), (-1, 0, 1), (1, 0, 1)],
+                  [(0, 1, 0)] * 5, [],
+                  [(0, 2, 1), (3, 4, 2)])
+    data, offsets = b"", []
+    for r in (sphere, quad, tent):
+        offsets.append(len(data))
+        data += r
+    data += b"".join(struct.pack("<Q", o) for o in offsets) + struct.pack("<I", 3)
+    (HERE / "meshes.serialized").write_bytes(data)
+
+
 def references(venv):
     render = HERE.parents[1] / ".." / "shared" / "tools" / "mitsuba-ref" / "render.py"
     for scene in SCENES:
@@ -113,5 +166,7 @@ if __name__ == "__main__":
         textures()
     elif sys.argv[1] == "curves":
         curves()
+    elif sys.argv[1] == "serialized":
+        serialized()
     else:
         references(sys.argv[2])

@@ -14,7 +14,9 @@
 //! isotropic and anisotropic), plastic, roughplastic (Beckmann and GGX, nonlinear),
 //! one-sided diffuse seen from behind, dielectric, roughdielectric, thindielectric,
 //! blendbsdf, twosided, normalmap and mask (a bitmap and a constant opacity, shadow rays
-//! through them), with checkerboard and bitmap textures, and round
+//! through them), with checkerboard and bitmap textures, `serialized` meshes (three from
+//! one file: computed smooth normals, double precision with normals and texture
+//! coordinates, `face_normals`), and round
 //! linear curves (`linearcurve`: tapering strands, a wire with sharp joints placed by a
 //! scaling `to_world`) and cubic B-spline curves (`bsplinecurve`: wavy tapering strands
 //! and a thick arch).
@@ -138,6 +140,33 @@ fn check_caught(name: &str, from: &str, to: &str, what: &str) {
     assert!(
         rel_mse >= MAX_REL_MSE || (ratio - 1.0).abs() >= MAX_MEAN_DEVIATION,
         "{what} passed: relMSE {rel_mse:.3e}, mean ratio {ratio:.4}"
+    );
+}
+
+#[test]
+fn serialized_meshes_match_mitsuba() {
+    check("serialized", 1024);
+}
+
+/// The serialized comparison can fail: the UV sphere shaded faceted (its computed smooth
+/// normals left out), and the tent shaded with the file's normals (all straight up)
+/// instead of its faces', are both caught.
+#[test]
+fn the_serialized_comparison_catches_wrong_normals() {
+    check_caught(
+        "serialized",
+        r#"<string name="filename" value="meshes.serialized"/>
+        <transform"#,
+        r#"<string name="filename" value="meshes.serialized"/>
+        <boolean name="face_normals" value="true"/>
+        <transform"#,
+        "a faceted sphere",
+    );
+    check_caught(
+        "serialized",
+        r#"<boolean name="face_normals" value="true"/>"#,
+        r#"<boolean name="face_normals" value="false"/>"#,
+        "the tent's file normals",
     );
 }
 

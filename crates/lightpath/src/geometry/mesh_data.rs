@@ -14,3 +14,59 @@ pub struct MeshData {
     pub uvs: Vec<Vec2>,
     pub indices: Vec<[u32; 3]>,
 }
+
+impl MeshData {
+    /// Smooth vertex normals from the triangles, as Mitsuba computes them for a mesh
+    /// file without normals: each triangle adds its unit normal weighted by its angle at
+    /// the vertex (Thürmer and Wüthrich 1998); degenerate triangles add nothing, and a
+    /// vertex that no triangle gives a direction gets +x.
+    pub fn compute_vertex_normals(&mut self) {
+        let mut normals = vec![Vec3::ZERO; self.positions.len()];
+        for t in &self.indices {
+            let v = t.map(|i| self.positions[i as usize]);
+            let n = (v[1] - v[0]).cross(v[2] - v[0]).normalize_or_zero();
+            if n == Vec3::ZERO {
+                continue;
+            }
+            for k in 0..3 {
+                let d0 = (v[(k + 1) % 3] - v[k]).normalize_or_zero();
+                let d1 = (v[(k + 2) % 3] - v[k]).normalize_or_zero();
+                let angle = d0.dot(d1).clamp(-1.0, 1.0).acos();
+                normals[t[k] as usize] += n * angle;
+            }
+        }
+        for n in &mut normals {
+            *n = n.try_normalize().unwrap_or(Vec3::X);
+        }
+        self.normals = normals;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn vertex_normals_weigh_each_triangle_by_its_angle() {
+        // A vertex at the origin with two triangles: one in the xy plane with a right
+        // angle there, one in the xz plane with 45 degrees.
+        let s = std::f32::consts::FRAC_1_SQRT_2;
+        let mut m = MeshData {
+            positions: vec![
+                Vec3::ZERO,
+                Vec3::X,
+                Vec3::Y,
+                Vec3::new(s, 0.0, -s),
+                Vec3::new(5.0, 5.0, 5.0), // in no triangle
+            ],
+            indices: vec![[0, 1, 2], [0, 1, 3]],
+            ..Default::default()
+        };
+        m.compute_vertex_normals();
+        // Normals: +z weighted by pi/2 and +y weighted by pi/4.
+        let expect = (Vec3::Z * 2.0 + Vec3::Y).normalize();
+        assert!((m.normals[0] - expect).length() < 1e-6, "{}", m.normals[0]);
+        assert!((m.normals[2] - Vec3::Z).length() < 1e-6);
+        assert_eq!(m.normals[4], Vec3::X);
+    }
+}

@@ -9,7 +9,7 @@
 //! wavelength list whose values are all equal (anything else is an error naming it).
 //! `<point>`/`<vector>` may give `x y z` attributes instead of `value`.
 //!
-//! Shapes: `obj`, `ply`, `sphere`, `rectangle`, `disk`, `cube`, `cylinder`,
+//! Shapes: `obj`, `ply`, `serialized` (with `shape_index`; see [`super::serialized`]), `sphere`, `rectangle`, `disk`, `cube`, `cylinder`,
 //! `linearcurve` and `bsplinecurve` (their control points moved by `to_world`, their
 //! radii kept, as Mitsuba does; see [`crate::geometry::LinearCurves`] and
 //! [`crate::geometry::CubicCurves`]), and `shapegroup` + `instance` (each instance places every shape of its group with the
@@ -383,6 +383,7 @@ const SAMPLERS: &[&str] = &[
 const SHAPES: &[&str] = &[
     "obj",
     "ply",
+    "serialized",
     "sphere",
     "rectangle",
     "disk",
@@ -414,7 +415,7 @@ const BSDFS: &[&str] = &[
 
 /// Where a `mask` BSDF applies.
 const MASK_SHAPES: &str =
-    "a `mask` BSDF is supported on meshes (`obj`, `ply`) and rectangles, as the shape's outermost BSDF";
+    "a `mask` BSDF is supported on meshes (`obj`, `ply`, `serialized`) and rectangles, as the shape's outermost BSDF";
 
 /// `shape` with its surface masked: a mesh (a copy: the file's mesh may be shared), or a
 /// rectangle as a two-triangle mesh over `accel` with the rectangle's parameterisation;
@@ -466,7 +467,7 @@ struct Builder {
     path: PathBuf,
     options: LoadOptions,
     ids: HashMap<String, Rc<Node>>,
-    meshes: HashMap<(PathBuf, bool, bool, bool), Arc<Shape>>,
+    meshes: HashMap<(PathBuf, bool, bool, bool, usize), Arc<Shape>>,
     materials: HashMap<*const Node, Arc<Material>>,
     textures: HashMap<*const Node, Arc<Texture>>,
     images: HashMap<(PathBuf, bool), Arc<crate::film::Image>>,
@@ -900,13 +901,25 @@ impl Builder {
         // PLY reader keeps texture coordinates as they are.
         let is_obj = node.type_name.as_deref() == Some("obj");
         let flip_uv = is_obj && node.bool_or("flip_tex_coords", true)?;
+        // A `.serialized` file may hold several meshes.
+        let index = match node.type_name.as_deref() {
+            Some("serialized") => {
+                let i = node.int("shape_index")?.unwrap_or(0);
+                usize::try_from(i)
+                    .map_err(|_| node.error(format!("shape_index must be >= 0, not {i}")))?
+            }
+            _ => 0,
+        };
         let canonical = path.canonicalize().unwrap_or_else(|_| path.clone());
-        let key = (canonical, face_normals, flip, flip_uv);
+        let key = (canonical, face_normals, flip, flip_uv, index);
         if let Some(s) = self.meshes.get(&key) {
             return Ok(s.clone());
         }
-        let mut data = crate::io::load_mesh(&path)
-            .map_err(|e| node.error(format!("cannot load mesh: {e}")))?;
+        let loaded = match node.type_name.as_deref() {
+            Some("serialized") => crate::io::serialized::load_serialized(&path, index),
+            _ => crate::io::load_mesh(&path),
+        };
+        let mut data = loaded.map_err(|e| node.error(format!("cannot load mesh: {e}")))?;
         if flip_uv {
             for uv in &mut data.uvs {
                 uv.y = 1.0 - uv.y;
@@ -919,6 +932,10 @@ impl Builder {
             for n in &mut data.normals {
                 *n = -*n;
             }
+        }
+        // Mitsuba's mesh readers give a mesh without normals smooth ones.
+        if !face_normals && data.normals.is_empty() {
+            data.compute_vertex_normals();
         }
         let mesh = TriangleMesh::new(data, !face_normals, self.options.accel.unwrap_or_default())
             .map_err(|m| node.error(format!("{}: {m}", path.display())))?;
@@ -971,7 +988,7 @@ impl Builder {
                 let csg = Csg::new(root).map_err(|m| node.error(m))?;
                 (Arc::new(Shape::Csg(Arc::new(csg))), Transform::IDENTITY)
             }
-            Some(t @ ("obj" | "ply")) => {
+            Some(t @ ("obj" | "ply" | "serialized")) => {
                 let file = node.string("filename").ok_or_else(|| {
                     node.error(format!("<shape type=\"{t}\"> needs a `filename`"))
                 })?;
@@ -1001,7 +1018,10 @@ impl Builder {
             ),
             _ => return Err(unknown_type(node, SHAPES)),
         };
-        if !matches!(node.type_name.as_deref(), Some("obj" | "ply" | "csg")) {
+        if !matches!(
+            node.type_name.as_deref(),
+            Some("obj" | "ply" | "serialized" | "csg")
+        ) {
             node.bool_or("flip_normals", false)?;
         }
         // Curves have their control points placed already (their radii stay as given).
@@ -1182,7 +1202,7 @@ impl Builder {
                 (Solid::Sphere, s.then(&Transform::translate(c)))
             }
             Some("cube") => (Solid::Cube, Transform::IDENTITY),
-            Some(t @ ("obj" | "ply")) => {
+            Some(t @ ("obj" | "ply" | "serialized")) => {
                 let file = node.string("filename").ok_or_else(|| {
                     node.error(format!("<shape type=\"{t}\"> needs a `filename`"))
                 })?;
@@ -1196,7 +1216,15 @@ impl Builder {
             _ => {
                 return Err(unknown_type(
                     node,
-                    &["sphere", "cube", "cylinder", "obj", "ply", "csg"],
+                    &[
+                        "sphere",
+                        "cube",
+                        "cylinder",
+                        "obj",
+                        "ply",
+                        "serialized",
+                        "csg",
+                    ],
                 ))
             }
         };

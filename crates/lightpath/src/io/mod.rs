@@ -10,6 +10,7 @@ pub mod mtl;
 pub mod obj;
 pub mod ply;
 pub mod props;
+pub mod serialized;
 pub mod xml;
 
 use crate::accel::AccelKind;
@@ -94,14 +95,16 @@ pub fn load_scene_str(text: &str, path: &Path, options: &LoadOptions) -> Result<
     lightwave::build(&root, path, options)
 }
 
-/// Loads a triangle mesh, choosing the format by extension (`.ply`, `.obj`).
+/// Loads a triangle mesh, choosing the format by extension (`.ply`, `.obj`, and
+/// `.serialized`, whose first mesh it reads).
 pub fn load_mesh(path: &Path) -> Result<MeshData> {
     match extension(path).as_str() {
         "ply" => ply::load_ply(path),
         "obj" => obj::load_obj(path),
+        "serialized" => serialized::load_serialized(path, 0),
         other => Err(Error::mesh(
             path,
-            format!("unsupported mesh format `.{other}` (supported: .ply, .obj)"),
+            format!("unsupported mesh format `.{other}` (supported: .ply, .obj, .serialized)"),
         )),
     }
 }
