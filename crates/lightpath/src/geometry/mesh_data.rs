@@ -19,7 +19,10 @@ impl MeshData {
     /// Smooth vertex normals from the triangles, as Mitsuba computes them for a mesh
     /// file without normals: each triangle adds its unit normal weighted by its angle at
     /// the vertex (Thürmer and Wüthrich 1998); degenerate triangles add nothing, and a
-    /// vertex that no triangle gives a direction gets +x.
+    /// vertex that no triangle gives a direction gets +x. Where every triangle's three
+    /// normals come out as its own face normal (a mesh of planar pieces, such as a quad
+    /// light), none are stored: the shading is the same, and the mesh stays flat for the
+    /// code that relies on flat meshes (flat emitters).
     pub fn compute_vertex_normals(&mut self) {
         let mut normals = vec![Vec3::ZERO; self.positions.len()];
         for t in &self.indices {
@@ -38,7 +41,12 @@ impl MeshData {
         for n in &mut normals {
             *n = n.try_normalize().unwrap_or(Vec3::X);
         }
-        self.normals = normals;
+        let flat = self.indices.iter().all(|t| {
+            let v = t.map(|i| self.positions[i as usize]);
+            let n = (v[1] - v[0]).cross(v[2] - v[0]).normalize_or_zero();
+            n == Vec3::ZERO || t.iter().all(|&i| normals[i as usize].dot(n) > 1.0 - 1e-6)
+        });
+        self.normals = if flat { Vec::new() } else { normals };
     }
 }
 
@@ -68,5 +76,14 @@ mod tests {
         assert!((m.normals[0] - expect).length() < 1e-6, "{}", m.normals[0]);
         assert!((m.normals[2] - Vec3::Z).length() < 1e-6);
         assert_eq!(m.normals[4], Vec3::X);
+
+        // A planar quad keeps no normals: they would all be its face normal.
+        let mut quad = MeshData {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::ONE, Vec3::new(0.0, 1.0, 1.0)],
+            indices: vec![[0, 1, 2], [0, 2, 3]],
+            ..Default::default()
+        };
+        quad.compute_vertex_normals();
+        assert!(quad.normals.is_empty());
     }
 }
