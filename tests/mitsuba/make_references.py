@@ -16,7 +16,7 @@ import subprocess
 import sys
 
 HERE = pathlib.Path(__file__).resolve().parent
-SCENES = ["box", "materials", "lights", "plastics", "curves", "bspline", "mask", "serialized"]
+SCENES = ["box", "materials", "lights", "plastics", "curves", "bspline", "mask", "serialized", "bump"]
 SPP = 16384
 
 
@@ -46,6 +46,13 @@ def textures():
     mask = np.where(r < 4.0, 128, mask)
     mask[(x > 9) & (y < 6)] = 0
     Image.fromarray(mask.astype(np.uint8)).save(HERE / "leaf_mask.png")
+
+    # A height field for `bumpmap`, 16x16, raw grey values: an egg-crate of 3 x 2
+    # bumps, brighter to the right so that its level slopes as well.
+    y, x = np.mgrid[0:16, 0:16]
+    h = 0.45 + 0.35 * np.sin(2 * np.pi * (x + 0.5) / 16 * 3) * np.cos(2 * np.pi * (y + 0.5) / 16 * 2)
+    h += 0.15 * x / 15
+    Image.fromarray(np.round(h * 255).astype(np.uint8)).save(HERE / "heights.png")
 
 
 def curves():

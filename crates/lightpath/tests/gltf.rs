@@ -219,7 +219,7 @@ fn camera_lights_and_materials() {
         assert!((p.roughness.eval(uv).x - 128.0 / 255.0 * 0.6).abs() < 1e-5);
         assert!((p.metallic.eval(uv).x - 64.0 / 255.0 * 0.8).abs() < 1e-5);
         // A flat normal map leaves the shading frame alone.
-        assert!((nm.frame(uv).n - Vec3::Z).length() < 0.01);
+        assert!((nm.frame(uv, Vec3::Z).n - Vec3::Z).length() < 0.01);
 
         // Both cubes use material 0: one material, built once.
         let (m0, m1) = (&scene.instances[0].material, &scene.instances[1].material);

@@ -16,7 +16,9 @@
 //! blendbsdf, twosided, normalmap and mask (a bitmap and a constant opacity, shadow rays
 //! through them), with checkerboard and bitmap textures, `serialized` meshes (three from
 //! one file: computed smooth normals, double precision with normals and texture
-//! coordinates, `face_normals`), and round
+//! coordinates, `face_normals`), `bumpmap` (a bitmap height field on a rectangle, a
+//! sphere with `to_uv`, a mesh with texture coordinates and a negative scale, and inside
+//! a `twosided` seen from behind), and round
 //! linear curves (`linearcurve`: tapering strands, a wire with sharp joints placed by a
 //! scaling `to_world`) and cubic B-spline curves (`bsplinecurve`: wavy tapering strands
 //! and a thick arch).
@@ -167,6 +169,63 @@ fn the_serialized_comparison_catches_wrong_normals() {
         r#"<boolean name="face_normals" value="true"/>"#,
         r#"<boolean name="face_normals" value="false"/>"#,
         "the tent's file normals",
+    );
+}
+
+#[test]
+fn bump_maps_match_mitsuba() {
+    check("bump", 1024);
+}
+
+/// The bump comparison can fail: the floor's bumps with the opposite sign (dents) and
+/// the mesh's bumps left out (scale 0) are each caught. (Mitsuba's terminator shadowing
+/// is checked value by value in the material tests.)
+#[test]
+fn the_bump_comparison_catches_wrong_bumps() {
+    check_caught(
+        "bump",
+        r#"<float name="scale" value="0.4"/>"#,
+        r#"<float name="scale" value="-0.4"/>"#,
+        "dents for bumps",
+    );
+    check_caught(
+        "bump",
+        r#"<float name="scale" value="-0.1"/>"#,
+        r#"<float name="scale" value="0"/>"#,
+        "a flat mesh",
+    );
+}
+
+/// The back of a two-sided bump map sees the bumps mirrored through the surface, as
+/// Mitsuba's `twosided` mirrors the directions before its nested `bumpmap` sees them;
+/// the nesting the other way round (the bump map outside, its normal negated from
+/// behind) is caught.
+#[test]
+fn the_bump_comparison_catches_the_back_of_an_outer_bump_map() {
+    let path = scene_path("bump");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let from = r#"<bsdf type="twosided">
+            <bsdf type="bumpmap">
+                <ref id="heights"/>
+                <float name="scale" value="0.15"/>
+                <bsdf type="diffuse"><rgb name="reflectance" value="0.8, 0.45, 0.2"/></bsdf>
+            </bsdf>
+        </bsdf>"#;
+    let to = r#"<bsdf type="bumpmap">
+            <ref id="heights"/>
+            <float name="scale" value="0.15"/>
+            <bsdf type="twosided">
+                <bsdf type="diffuse"><rgb name="reflectance" value="0.8, 0.45, 0.2"/></bsdf>
+            </bsdf>
+        </bsdf>"#;
+    let changed = text.replace(from, to);
+    assert_ne!(changed, text);
+    let loaded = load_scene_str(&changed, &path, &LoadOptions::default()).unwrap();
+    let (rel_mse, ratio) = compare(&render(&loaded, 1024), "bump");
+    eprintln!("bumpmap outside twosided: relMSE {rel_mse:.3e}, mean ratio {ratio:.4}");
+    assert!(
+        rel_mse >= MAX_REL_MSE || (ratio - 1.0).abs() >= MAX_MEAN_DEVIATION,
+        "bumpmap outside twosided passed: relMSE {rel_mse:.3e}, mean ratio {ratio:.4}"
     );
 }
 

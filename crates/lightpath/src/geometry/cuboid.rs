@@ -76,8 +76,9 @@ impl Cuboid {
         let (a1, a2) = ((axis + 1) % 3, (axis + 2) % 3);
         let mut p_error = gamma(5) * p.abs();
         p_error[axis] = 0.0;
-        let mut dpdu = Vec3::ZERO;
+        let (mut dpdu, mut dpdv) = (Vec3::ZERO, Vec3::ZERO);
         dpdu[a1] = 2.0;
+        dpdv[a2] = 2.0;
         SurfaceInteraction {
             p,
             p_error,
@@ -85,6 +86,7 @@ impl Cuboid {
             n,
             shading_n: n,
             dpdu,
+            dpdv,
             uv: Vec2::new((p[a1] + 1.0) * 0.5, (p[a2] + 1.0) * 0.5),
             wo: -ray.direction.normalize(),
             instance: 0,

@@ -269,6 +269,9 @@ pub(crate) fn swept_sphere_interaction(
         n: nf,
         shading_n: nf,
         dpdu,
+        // Along the curve (v runs along the curve set; its rate per unit of v is not
+        // known here, so this has dp/du's length).
+        dpdv: nf.cross(dpdu),
         uv: Vec2::new(u / (2.0 * PI), along as f32),
         wo: -ray.direction.normalize(),
         instance: 0,

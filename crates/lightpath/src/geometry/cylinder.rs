@@ -113,6 +113,7 @@ impl Cylinder {
                 n,
                 shading_n: n,
                 dpdu: Vec3::new(-2.0 * PI * p.y, 2.0 * PI * p.x, 0.0),
+                dpdv: Vec3::Z,
                 uv: Vec2::new(phi / (2.0 * PI), p.z),
                 wo,
                 instance: 0,
@@ -138,6 +139,8 @@ impl Cylinder {
                 } else {
                     Vec3::X
                 },
+                // v = φ/2π, as on a disk.
+                dpdv: Vec3::new(-p.y, p.x, 0.0) * (2.0 * PI),
                 uv: Vec2::new(r, phi / (2.0 * PI)),
                 wo,
                 instance: 0,

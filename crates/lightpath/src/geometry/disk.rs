@@ -44,7 +44,9 @@ impl Disk {
         } else {
             Vec3::X
         };
-        z0_interaction(ray, hit, p, Vec2::new(r, phi / (2.0 * PI)), dpdu)
+        // v = φ/2π: the point turns by 2π·(−y, x) per unit of v.
+        let dpdv = Vec3::new(-p.y, p.x, 0.0) * (2.0 * PI);
+        z0_interaction(ray, hit, p, Vec2::new(r, phi / (2.0 * PI)), dpdu, dpdv)
     }
 
     pub fn area(&self) -> f32 {

@@ -18,6 +18,10 @@ pub struct SurfaceInteraction {
     pub shading_n: Vec3,
     /// Surface tangent along increasing `u` (not necessarily unit length).
     pub dpdu: Vec3,
+    /// Surface tangent along increasing `v` (not necessarily unit length, nor orthogonal
+    /// to `dpdu`): with `dpdu`, how far the point moves per unit of texture coordinates,
+    /// which bump mapping needs.
+    pub dpdv: Vec3,
     /// Texture coordinates.
     pub uv: Vec2,
     /// Unit direction towards the ray origin.
@@ -41,6 +45,7 @@ impl SurfaceInteraction {
                 .normal(self.shading_n)
                 .normalize_or_zero(),
             dpdu: render_from_object.vector(self.dpdu),
+            dpdv: render_from_object.vector(self.dpdv),
             uv: self.uv,
             wo: render_from_object.vector(self.wo).normalize_or_zero(),
             instance: self.instance,

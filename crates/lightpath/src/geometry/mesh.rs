@@ -1207,22 +1207,29 @@ impl TriangleMesh {
                 }
             }
         }
-        // dp/du from the uv parameterisation (pbrt-v4, section 6.5.3).
-        let mut dpdu = if self.uvs.is_empty() {
-            // The default parameterisation's u runs from corner 0 to corner 1 (det = 1).
-            p1 - p0
+        // dp/du and dp/dv from the uv parameterisation (pbrt-v4, section 6.5.3).
+        let (mut dpdu, mut dpdv) = if self.uvs.is_empty() {
+            // The default parameterisation (corners at uv (0, 0), (1, 0), (1, 1)): u
+            // runs from corner 0 to corner 1, v from corner 1 to corner 2 (det = 1).
+            (p1 - p0, p2 - p1)
         } else {
             let duv02 = uv0 - uv2;
             let duv12 = uv1 - uv2;
             let det = duv02.x * duv12.y - duv02.y * duv12.x;
             if det.abs() > 1e-12 {
-                ((p0 - p2) * duv12.y - (p1 - p2) * duv02.y) / det
+                (
+                    ((p0 - p2) * duv12.y - (p1 - p2) * duv02.y) / det,
+                    ((p1 - p2) * duv02.x - (p0 - p2) * duv12.x) / det,
+                )
             } else {
-                Vec3A::ZERO
+                (Vec3A::ZERO, Vec3A::ZERO)
             }
         };
         if !dpdu.is_finite() || dpdu.cross(n).length_squared() == 0.0 {
             dpdu = Vec3A::from(Frame::from_normal(Vec3::from(n)).s);
+        }
+        if !dpdv.is_finite() || dpdu.cross(dpdv).length_squared() == 0.0 {
+            dpdv = n.cross(dpdu);
         }
         SurfaceInteraction {
             p: p.into(),
@@ -1231,6 +1238,7 @@ impl TriangleMesh {
             n: n.into(),
             shading_n: shading_n.into(),
             dpdu: dpdu.into(),
+            dpdv: dpdv.into(),
             uv,
             wo: (-unit(Vec3A::from(ray.direction))).into(),
             instance: 0,

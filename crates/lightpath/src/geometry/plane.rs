@@ -37,6 +37,7 @@ pub(super) fn z0_interaction(
     p: Vec3,
     uv: Vec2,
     dpdu: Vec3,
+    dpdv: Vec3,
 ) -> SurfaceInteraction {
     SurfaceInteraction {
         p,
@@ -46,6 +47,7 @@ pub(super) fn z0_interaction(
         n: Vec3::Z,
         shading_n: Vec3::Z,
         dpdu,
+        dpdv,
         uv,
         wo: -ray.direction.normalize(),
         instance: 0,
@@ -74,7 +76,7 @@ impl Plane {
     pub fn interaction(&self, ray: &Ray, hit: &ShapeHit) -> SurfaceInteraction {
         let mut p = ray.at(hit.t);
         p.z = 0.0;
-        z0_interaction(ray, hit, p, Vec2::new(p.x, p.y), Vec3::X)
+        z0_interaction(ray, hit, p, Vec2::new(p.x, p.y), Vec3::X, Vec3::Y)
     }
 }
 

@@ -36,7 +36,14 @@ impl Rectangle {
     pub fn interaction(&self, ray: &Ray, hit: &ShapeHit) -> SurfaceInteraction {
         let p = Vec3::new(hit.uv.x, hit.uv.y, 0.0);
         let uv = (hit.uv + Vec2::ONE) * 0.5;
-        z0_interaction(ray, hit, p, uv, Vec3::new(2.0, 0.0, 0.0))
+        z0_interaction(
+            ray,
+            hit,
+            p,
+            uv,
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(0.0, 2.0, 0.0),
+        )
     }
 
     pub fn area(&self) -> f32 {

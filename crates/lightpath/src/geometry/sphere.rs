@@ -91,6 +91,14 @@ impl Sphere {
         if dpdu.length_squared() == 0.0 {
             dpdu = Vec3::X;
         }
+        // v = θ/π: dp/dθ = (z cos φ, z sin φ, −sin θ).
+        let rd = (p.x * p.x + p.y * p.y).sqrt();
+        let (cos_phi, sin_phi) = if rd > 0.0 {
+            (p.x / rd, p.y / rd)
+        } else {
+            (1.0, 0.0)
+        };
+        let dpdv = Vec3::new(p.z * cos_phi, p.z * sin_phi, -rd) * PI;
         SurfaceInteraction {
             p,
             p_error,
@@ -98,6 +106,7 @@ impl Sphere {
             n: p,
             shading_n: p,
             dpdu,
+            dpdv,
             uv: Vec2::new(phi / (2.0 * PI), theta / PI),
             wo: -ray.direction.normalize(),
             instance: 0,

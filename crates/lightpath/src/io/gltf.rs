@@ -610,10 +610,7 @@ impl<'a> Loader<'a> {
         if let Some(normal) = m.normal_texture() {
             let texel = Texel::Normal(normal.scale());
             let normal = self.texture(normal.texture(), normal.tex_coord(), texel)?;
-            material = Arc::new(Material::NormalMap(NormalMap {
-                normal,
-                inner: material,
-            }));
+            material = Arc::new(Material::NormalMap(NormalMap::new(normal, material)));
         }
         let strength = m.emissive_strength().unwrap_or(1.0);
         let emissive = Vec3::from_array(m.emissive_factor()) * strength;

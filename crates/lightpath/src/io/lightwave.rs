@@ -796,7 +796,7 @@ impl Builder {
                 let normal = self.bsdf_required_slot(node, "normal")?;
                 let inner = self.material(&self.single_child(node, "bsdf")?)?;
                 (
-                    Material::NormalMap(NormalMap { normal, inner }),
+                    Material::NormalMap(NormalMap::new(normal, inner)),
                     &["normal"],
                 )
             }
@@ -1134,7 +1134,7 @@ impl Builder {
         if let Some(normal) = self.instance_normal_map(node)? {
             if let Some(inner) = instance.material.take() {
                 instance.material =
-                    Some(Arc::new(Material::NormalMap(NormalMap { normal, inner })));
+                    Some(Arc::new(Material::NormalMap(NormalMap::new(normal, inner))));
             }
         }
         Ok(vec![instance])

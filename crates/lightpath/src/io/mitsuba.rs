@@ -49,6 +49,15 @@
 //!   `principled` maps `base_color`, `roughness`, `metallic`, `specular` (other
 //!   parameters are errors).
 //!   `twosided` with two BSDFs uses the first in front, the second behind.
+//!   `bumpmap` (its one texture, any name, as the height; `scale`) may be a shape's BSDF
+//!   or a side of a `twosided` and wrap any BSDF ([`crate::material::BumpMap`]); inside
+//!   a `blendbsdf`, `normalmap` or another `bumpmap` it is an error. `bumpmap` and
+//!   `normalmap` take `flip_invalid_normals` and `use_shadowing_function` (both on by
+//!   default, as in Mitsuba 3.7 and later). A `bitmap`'s height gradient is that of its
+//!   bilinear interpolation (zero with `nearest` filtering, as in Mitsuba); other
+//!   textures have none.
+//! - Meshes (`obj`, `ply`, `serialized`) without normals get smooth ones, weighted by
+//!   angle, as Mitsuba computes them (unless `face_normals`).
 //!   `mask` (the shape's outermost BSDF, on meshes and rectangles) makes the surface
 //!   transparent with probability 1 − `opacity` (its first channel; default 0.5) at
 //!   each point: rays pass through it there ([`crate::geometry::AlphaTest::Stochastic`]),
@@ -83,8 +92,9 @@ use crate::light::{
 };
 use crate::material::microfacet::Distribution;
 use crate::material::{
-    fresnel, Blend, ComplexIor, Conductor, Dielectric, Diffuse, Material, NormalMap, OneSided,
-    Plastic, Principled, RoughConductor, RoughDielectric, RoughPlastic, ThinDielectric, TwoSided,
+    fresnel, Blend, BumpMap, ComplexIor, Conductor, Dielectric, Diffuse, Material, NormalMap,
+    OneSided, Plastic, Principled, RoughConductor, RoughDielectric, RoughPlastic, ThinDielectric,
+    TwoSided,
 };
 use crate::math::Transform;
 use crate::sampling::{IndependentSampler, Sampler};
@@ -410,6 +420,7 @@ const BSDFS: &[&str] = &[
     "twosided",
     "blendbsdf",
     "normalmap",
+    "bumpmap",
     "hair",
 ];
 
@@ -1691,10 +1702,44 @@ impl Builder {
                 Material::NormalMap(NormalMap {
                     normal,
                     inner: self.material(&inner[0])?,
+                    flip_invalid: node.bool_or("flip_invalid_normals", true)?,
+                    shadowing: node.bool_or("use_shadowing_function", true)?,
+                })
+            }
+            Some("bumpmap") => {
+                self.check_children(node, &["bsdf", "texture"])?;
+                // The height field is the one nested texture, whatever its name.
+                let textures: Vec<_> = self
+                    .children(node)?
+                    .into_iter()
+                    .filter(|(_, c)| c.tag == "texture")
+                    .collect();
+                let [(_, texture)] = textures.as_slice() else {
+                    return Err(node.error(format!(
+                        "bumpmap needs one <texture> (the height field), found {}",
+                        textures.len()
+                    )));
+                };
+                let height = self.texture(texture)?;
+                let inner = self.bsdfs(node)?;
+                if inner.len() != 1 {
+                    return Err(node.error("bumpmap needs one <bsdf>"));
+                }
+                let scale = node.float_or("scale", 1.0)?;
+                if !scale.is_finite() {
+                    return Err(node.error(format!("bumpmap `scale` must be finite, not {scale}")));
+                }
+                Material::BumpMap(BumpMap {
+                    height,
+                    scale,
+                    inner: self.material(&inner[0])?,
+                    flip_invalid: node.bool_or("flip_invalid_normals", true)?,
+                    shadowing: node.bool_or("use_shadowing_function", true)?,
                 })
             }
             _ => return Err(unknown_type(node, BSDFS)),
         };
+        check_bump_nesting(node, &material)?;
         if kind.is_some() {
             self.check_used(node)?;
         }
@@ -1702,6 +1747,39 @@ impl Builder {
         self.materials.insert(key, m.clone());
         Ok(m)
     }
+}
+
+/// A `bumpmap` perturbs the frame where the material meets the surface, so it may be a
+/// shape's BSDF or a side of a `twosided`, wrapping anything: an error for one nested
+/// deeper (directly or through a `twosided`) in `material`, the BSDF `node` made.
+fn check_bump_nesting(node: &Node, material: &Material) -> Result<()> {
+    let has_bump_side = |m: &Material| match m {
+        Material::TwoSided(t) => std::iter::once(&t.inner)
+            .chain(t.back.as_ref())
+            .any(|m| matches!(**m, Material::BumpMap(_))),
+        _ => false,
+    };
+    let inner: Vec<&Material> = match material {
+        Material::Blend(b) => vec![&*b.first, &*b.second],
+        Material::NormalMap(m) => vec![&*m.inner],
+        Material::BumpMap(m) => vec![&*m.inner],
+        Material::TwoSided(t) => std::iter::once(&t.inner)
+            .chain(t.back.as_ref())
+            .map(|m| &**m)
+            .collect(),
+        _ => Vec::new(),
+    };
+    let in_twosided = matches!(material, Material::TwoSided(_));
+    for m in inner {
+        if (matches!(m, Material::BumpMap(_)) && !in_twosided) || has_bump_side(m) {
+            return Err(node.error(format!(
+                "a `bumpmap` is supported as a shape's BSDF or inside a `twosided` that is, \
+                 not inside {}",
+                node.describe()
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// Mitsuba's reflective BSDFs are black from behind (only `twosided` makes them reflect
@@ -1904,6 +1982,7 @@ mod tests {
             n: Vec3::Z,
             shading_n: Vec3::Z,
             dpdu: Vec3::X,
+            dpdv: Vec3::Y,
             uv: Vec2::splat(0.5),
             wo: up,
             instance: 0,
@@ -2050,6 +2129,88 @@ mod tests {
             ),
         ] {
             let err = load(&scene_with(body), &[]).unwrap_err().to_string();
+            assert!(err.contains("m.xml:") && err.contains(message), "{err}");
+        }
+    }
+
+    /// A `bumpmap` becomes the shape's material, also inside a `twosided` (with Mitsuba's
+    /// flip and shadowing on unless turned off); nested deeper, or without its one
+    /// texture and one BSDF, it is an error naming the line.
+    #[test]
+    fn bumpmap_nests_where_the_frame_is_built() {
+        let bump = |extra: &str| {
+            format!(
+                r#"<bsdf type="bumpmap"><texture type="checkerboard" name="h"/>{extra}
+                   <bsdf type="diffuse"/></bsdf>"#
+            )
+        };
+        let ray = crate::math::Ray::new(Vec3::new(0.2, 0.3, 1.0), -Vec3::Z);
+        for (bsdf, flip_invalid, shadowing) in [
+            (bump(""), true, true),
+            (
+                bump(r#"<boolean name="use_shadowing_function" value="false"/>"#),
+                true,
+                false,
+            ),
+            (
+                format!(
+                    r#"<bsdf type="twosided">{}</bsdf>"#,
+                    bump(r#"<boolean name="flip_invalid_normals" value="false"/>"#)
+                ),
+                false,
+                true,
+            ),
+        ] {
+            let scene = load(
+                &scene_with(&format!(r#"<shape type="rectangle">{bsdf}</shape>"#)),
+                &[],
+            )
+            .unwrap();
+            let si = scene.scene.intersect(&ray).unwrap();
+            let b = match scene.scene.material(&si) {
+                Some(Material::BumpMap(b)) => b,
+                Some(Material::TwoSided(t)) => match &*t.inner {
+                    Material::BumpMap(b) => b,
+                    m => panic!("{m:?}"),
+                },
+                m => panic!("{m:?}"),
+            };
+            assert_eq!((b.flip_invalid, b.shadowing), (flip_invalid, shadowing));
+        }
+        for (body, message) in [
+            (
+                format!(
+                    r#"<bsdf type="blendbsdf">{}<bsdf type="diffuse"/></bsdf>"#,
+                    bump("")
+                ),
+                "not inside <bsdf type=\"blendbsdf\">",
+            ),
+            (
+                format!(
+                    r#"<bsdf type="normalmap"><rgb name="normalmap" value="0.5, 0.5, 1"/>{}</bsdf>"#,
+                    bump("")
+                ),
+                "not inside",
+            ),
+            (
+                format!(
+                    r#"<bsdf type="blendbsdf"><bsdf type="twosided">{}</bsdf><bsdf type="diffuse"/></bsdf>"#,
+                    bump("")
+                ),
+                "not inside",
+            ),
+            (
+                r#"<bsdf type="bumpmap"><bsdf type="diffuse"/></bsdf>"#.to_string(),
+                "needs one <texture>",
+            ),
+            (
+                r#"<bsdf type="bumpmap"><texture type="checkerboard" name="h"/></bsdf>"#
+                    .to_string(),
+                "needs one <bsdf>",
+            ),
+        ] {
+            let xml = scene_with(&format!(r#"<shape type="rectangle">{body}</shape>"#));
+            let err = load(&xml, &[]).unwrap_err().to_string();
             assert!(err.contains("m.xml:") && err.contains(message), "{err}");
         }
     }

@@ -540,15 +540,15 @@ impl MaterialBuilder {
             let mean =
                 image.pixels.iter().copied().sum::<Vec3>() / image.pixels.len().max(1) as f32;
             if mean.z > 0.6 && mean.z > mean.x + 0.15 && mean.z > mean.y + 0.15 {
-                material = Material::NormalMap(NormalMap {
-                    normal: Arc::new(Texture::Image(ImageTexture {
+                material = Material::NormalMap(NormalMap::new(
+                    Arc::new(Texture::Image(ImageTexture {
                         image,
                         border: BorderMode::Repeat,
                         filter: FilterMode::Bilinear,
                         exposure: 1.0,
                     })),
-                    inner: Arc::new(material),
-                });
+                    Arc::new(material),
+                ));
             } else {
                 log::warn!(
                     "{}:{}: {} looks like a height (bump) map, not a normal map; ignored",

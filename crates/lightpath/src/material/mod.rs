@@ -27,6 +27,9 @@
 //! <bsdf type="twosided"><bsdf type="plastic"/></bsdf>
 //! <bsdf type="blend"><float name="weight" value="0.3"/><bsdf type="diffuse"/><bsdf type="conductor"/></bsdf>
 //! <bsdf type="normalmap"><texture name="normal" type="image" filename="n.png" linear="true"/><bsdf type="diffuse"/></bsdf>
+//! <!-- Mitsuba dialect only: a height field's luminance tilts the normal -->
+//! <bsdf type="bumpmap"><texture name="h" type="bitmap"><string name="filename" value="h.png"/></texture>
+//!     <float name="scale" value="0.05"/><bsdf type="roughplastic"/></bsdf>
 //! <bsdf type="hair"><float name="eumelanin" value="1.3"/></bsdf>
 //! ```
 //!
@@ -35,6 +38,7 @@
 //! the exact model.
 
 mod blend;
+mod bumpmap;
 mod conductor;
 mod dielectric;
 mod diffuse;
@@ -55,6 +59,7 @@ mod twosided;
 mod tests;
 
 pub use blend::Blend;
+pub use bumpmap::BumpMap;
 pub use conductor::{ComplexIor, Conductor};
 pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
@@ -106,6 +111,10 @@ pub enum Material {
     OneSided(OneSided),
     Blend(Blend),
     NormalMap(NormalMap),
+    /// Applied by [`Bsdf::new`], which has the surface's dp/du and dp/dv: where the
+    /// local-frame methods meet one (nested where `Bsdf::new` does not look, which the
+    /// scene readers reject), they use the inner BSDF unperturbed.
+    BumpMap(BumpMap),
     Hair(Hair),
 }
 
@@ -134,6 +143,29 @@ pub fn frame_from_normal_and_tangent(n: Vec3, tangent: Vec3) -> Frame {
 #[inline]
 pub fn shading_frame(si: &SurfaceInteraction) -> Frame {
     frame_from_normal_and_tangent(si.shading_n, si.dpdu)
+}
+
+/// The shadowing term of Conty Estevez, Lecocq and Stein (2019, "A Microfacet-Based
+/// Shadowing Function to Solve the Bump Terminator Problem") that Mitsuba's `bumpmap` and
+/// `normalmap` apply by default: a Smith G1 of GGX roughness α² = min(tan²θn / 8, 1),
+/// θn the tilt of the perturbed normal, for a direction at θ from the unperturbed one.
+/// Given cos θn and cos θ.
+#[inline]
+pub(crate) fn terminator_shadowing(cos_n: f32, cos_w: f32) -> f32 {
+    let tan2 = |c: f32| {
+        let c2 = c * c;
+        (1.0 - c2).max(0.0) / c2
+    };
+    let alpha2 = (0.125 * tan2(cos_n)).min(1.0);
+    if alpha2 == 0.0 {
+        return 1.0;
+    }
+    let g = 2.0 / (1.0 + (1.0 + alpha2 * tan2(cos_w)).sqrt());
+    if g.is_finite() {
+        g
+    } else {
+        0.0
+    }
 }
 
 /// A scalar parameter from a texture: its first channel (lightwave's `scalar`).
@@ -174,18 +206,96 @@ pub struct Bsdf<'a> {
     pub uv: Vec2,
     /// The outgoing direction in the local frame.
     pub wo: Vec3,
+    /// Under a bump map: the unperturbed shading normal in the local (perturbed) frame.
+    /// A direction on different sides of it and of the perturbed normal carries nothing.
+    pub guard: Option<Vec3>,
+    /// Under a bump map with terminator shadowing: its cosine of the perturbed normal's
+    /// tilt (see [`terminator_shadowing`]); 1 (no shadowing) otherwise.
+    pub shadowing_cos: f32,
 }
 
 impl<'a> Bsdf<'a> {
     /// The BSDF of `material` at `si` for the render-space outgoing direction `wo`.
     #[inline]
     pub fn new(material: &'a Material, si: &SurfaceInteraction, wo: Vec3) -> Self {
+        let bumped = match material {
+            Material::BumpMap(_) => true,
+            Material::TwoSided(t) => {
+                matches!(*t.inner, Material::BumpMap(_))
+                    || matches!(t.back.as_deref(), Some(Material::BumpMap(_)))
+            }
+            _ => false,
+        };
+        if bumped {
+            if let Some(bsdf) = Self::bumped(material, si, wo) {
+                return bsdf;
+            }
+        }
         let frame = shading_frame(si);
         Bsdf {
             material,
             frame,
             uv: si.uv,
             wo: frame.to_local(wo),
+            guard: None,
+            shadowing_cos: 1.0,
+        }
+    }
+
+    /// A bump map's BSDF, outermost or inside a two-sided one: the nested material in the
+    /// perturbed frame. `None` for materials without a bump map there.
+    #[inline(never)]
+    fn bumped(material: &'a Material, si: &SurfaceInteraction, wo: Vec3) -> Option<Self> {
+        let bsdf = |b: &'a BumpMap, frame: Frame, n: Vec3| {
+            let guard = frame.to_local(n);
+            Bsdf {
+                material: &b.inner,
+                frame,
+                uv: si.uv,
+                wo: frame.to_local(wo),
+                guard: Some(guard),
+                shadowing_cos: if b.shadowing { guard.z } else { 1.0 },
+            }
+        };
+        let n = si.shading_n;
+        let mirror = |v: Vec3| v - n * (2.0 * v.dot(n));
+        match material {
+            Material::BumpMap(b) => Some(bsdf(b, b.frame(si, wo), n)),
+            Material::TwoSided(t) => {
+                // As `TwoSided` does in the local frame: seen from behind, the back's
+                // BSDF with both directions mirrored through the (unperturbed) tangent
+                // plane, here by mirroring the frame instead.
+                let back = wo.dot(n) < 0.0;
+                let side = if back {
+                    t.back.as_deref().unwrap_or(&t.inner)
+                } else {
+                    &t.inner
+                };
+                let Material::BumpMap(b) = side else {
+                    return None;
+                };
+                if !back {
+                    return Some(bsdf(b, b.frame(si, wo), n));
+                }
+                let f = b.frame(si, mirror(wo));
+                let mirrored = Frame {
+                    s: mirror(f.s),
+                    t: mirror(f.t),
+                    n: mirror(f.n),
+                };
+                Some(bsdf(b, mirrored, -n))
+            }
+            _ => None,
+        }
+    }
+
+    /// Whether a local `wi` is on the same side of the perturbed and the unperturbed
+    /// surface (always, without a bump map).
+    #[inline(always)]
+    fn passes_guard(&self, wi: Vec3) -> bool {
+        match self.guard {
+            None => true,
+            Some(g) => wi.z * wi.dot(g) > 0.0,
         }
     }
 
@@ -198,12 +308,37 @@ impl<'a> Bsdf<'a> {
     /// f(wo, wi)·|cos θi| for a local `wi` (see [`Bsdf::to_local`]).
     #[inline]
     pub fn eval_local(&self, wi: Vec3) -> Vec3 {
-        self.material.eval_local(self.uv, self.wo, wi)
+        // One inlined copy of the material's evaluation; a bump map's side guard and
+        // shadowing out of line.
+        let weight = match self.guard {
+            None => 1.0,
+            Some(_) => self.bump_weight(wi),
+        };
+        if weight == 0.0 {
+            return Vec3::ZERO;
+        }
+        self.material.eval_local(self.uv, self.wo, wi) * weight
+    }
+
+    /// Under a bump map: 0 for a `wi` on different sides of the perturbed and the
+    /// unperturbed surface, else its terminator shadowing.
+    #[inline(never)]
+    fn bump_weight(&self, wi: Vec3) -> f32 {
+        match self.guard {
+            Some(g) if wi.z * wi.dot(g) > 0.0 => {
+                terminator_shadowing(self.shadowing_cos, wi.dot(g))
+            }
+            Some(_) => 0.0,
+            None => 1.0,
+        }
     }
 
     /// The density of a local `wi`.
     #[inline]
     pub fn pdf_local(&self, wi: Vec3) -> f32 {
+        if !self.passes_guard(wi) {
+            return 0.0;
+        }
         self.material.pdf_local(self.uv, self.wo, wi)
     }
 
@@ -224,8 +359,11 @@ impl<'a> Bsdf<'a> {
     #[inline]
     pub fn sample(&self, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         let mut bs = self.material.sample_local(self.uv, self.wo, u_lobe, u)?;
-        if !valid_pdf(bs.pdf) || !bs.weight.is_finite() {
+        if !valid_pdf(bs.pdf) || !bs.weight.is_finite() || !self.passes_guard(bs.wi) {
             return None;
+        }
+        if self.guard.is_some() {
+            bs.weight *= self.bump_weight(bs.wi);
         }
         bs.wi = self.frame.to_world(bs.wi);
         Some(bs)
@@ -292,6 +430,7 @@ impl Material {
             Material::OneSided(m) => m.eval(uv, wo, wi),
             Material::Blend(m) => m.eval(uv, wo, wi),
             Material::NormalMap(m) => m.eval(uv, wo, wi),
+            Material::BumpMap(m) => m.inner.eval_local(uv, wo, wi),
             Material::Hair(m) => m.eval(uv, wo, wi),
         }
     }
@@ -326,6 +465,7 @@ impl Material {
             Material::OneSided(m) => m.pdf(uv, wo, wi),
             Material::Blend(m) => m.pdf(uv, wo, wi),
             Material::NormalMap(m) => m.pdf(uv, wo, wi),
+            Material::BumpMap(m) => m.inner.pdf_local(uv, wo, wi),
             Material::Hair(m) => m.pdf(uv, wo, wi),
         }
     }
@@ -360,6 +500,7 @@ impl Material {
             Material::OneSided(m) => m.sample(uv, wo, u_lobe, u),
             Material::Blend(m) => m.sample(uv, wo, u_lobe, u),
             Material::NormalMap(m) => m.sample(uv, wo, u_lobe, u),
+            Material::BumpMap(m) => m.inner.sample_local(uv, wo, u_lobe, u),
             Material::Hair(m) => m.sample(uv, wo, u_lobe, u),
         }
     }
@@ -383,6 +524,7 @@ impl Material {
             Material::TwoSided(m) => m.inner.albedo(uv),
             Material::OneSided(m) => m.inner.albedo(uv),
             Material::NormalMap(m) => m.inner.albedo(uv),
+            Material::BumpMap(m) => m.inner.albedo(uv),
             Material::Hair(m) => m.albedo(uv),
             Material::Blend(m) => {
                 let w = scalar(&m.weight, uv);
@@ -410,6 +552,7 @@ impl Material {
             Material::TwoSided(_)
             | Material::OneSided(_)
             | Material::NormalMap(_)
+            | Material::BumpMap(_)
             | Material::Blend(_) => self.is_delta_wrapped(),
         }
     }
@@ -420,6 +563,7 @@ impl Material {
             Material::TwoSided(m) => m.is_delta(),
             Material::OneSided(m) => m.inner.is_delta(),
             Material::NormalMap(m) => m.inner.is_delta(),
+            Material::BumpMap(m) => m.inner.is_delta(),
             Material::Blend(m) => m.first.is_delta() && m.second.is_delta(),
             _ => self.is_delta(),
         }

@@ -68,6 +68,25 @@ impl ImageTexture {
         value * self.exposure
     }
 
+    /// The gradient over (u, v) of the luminance that [`ImageTexture::eval`] returns;
+    /// zero with nearest filtering.
+    pub fn luminance_gradient(&self, uv: Vec2) -> Vec2 {
+        if self.filter == FilterMode::Nearest {
+            return Vec2::ZERO;
+        }
+        let (w, h) = (self.image.width as f32, self.image.height as f32);
+        let q = Vec2::new(uv.x * w, (1.0 - uv.y) * h) - Vec2::splat(0.5);
+        let (x0, y0) = (q.x.floor(), q.y.floor());
+        let (fx, fy) = (q.x - x0, q.y - y0);
+        let (x0, y0) = (x0 as i64, y0 as i64);
+        let f = |x, y| crate::light::luminance(self.texel(x, y));
+        let (f00, f10, f01, f11) = (f(x0, y0), f(x0 + 1, y0), f(x0, y0 + 1), f(x0 + 1, y0 + 1));
+        // Derivatives over the texel coordinates (x along u, y down the image, against v).
+        let df_dx = (f10 - f00) * (1.0 - fy) + (f11 - f01) * fy;
+        let df_dy = (f01 - f00) * (1.0 - fx) + (f11 - f10) * fx;
+        Vec2::new(df_dx * w, -df_dy * h) * self.exposure
+    }
+
     pub fn average(&self) -> Vec3 {
         let sum: Vec3 = self.image.pixels.iter().copied().sum();
         sum / self.image.pixels.len().max(1) as f32 * self.exposure

@@ -54,6 +54,22 @@ impl Texture {
         }
     }
 
+    /// The gradient over (u, v) of the texture's luminance (for bump mapping): exact for
+    /// bilinearly filtered images (the derivative of the interpolation inside the texel
+    /// cell), zero for constants, nearest-filtered images and checkerboards (flat almost
+    /// everywhere), through the affine map of a transformed texture.
+    pub fn luminance_gradient(&self, uv: Vec2) -> Vec2 {
+        match self {
+            Texture::Constant(_) | Texture::Checkerboard(_) => Vec2::ZERO,
+            Texture::Image(t) => t.luminance_gradient(uv),
+            Texture::Transformed(t) => {
+                // d/duv f(A·uv + b) = Aᵀ ∇f.
+                let g = t.texture.luminance_gradient(t.to_uv.transform_point2(uv));
+                t.to_uv.matrix2.transpose() * g
+            }
+        }
+    }
+
     /// The mean colour over [0, 1]² (for light power estimates).
     pub fn average(&self) -> Vec3 {
         match self {
