@@ -944,7 +944,9 @@ impl Builder {
                 *n = -*n;
             }
         }
-        // Mitsuba's mesh readers give a mesh without normals smooth ones.
+        // Mitsuba's mesh readers give a mesh without normals smooth ones. (Here in object
+        // space, as the mesh may be shared by several placements; Mitsuba weighs the
+        // angles after `to_world`, which differs only under a non-uniform scale.)
         if !face_normals && data.normals.is_empty() {
             data.compute_vertex_normals();
         }
