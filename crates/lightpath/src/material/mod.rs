@@ -359,11 +359,16 @@ impl<'a> Bsdf<'a> {
     #[inline]
     pub fn sample(&self, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         let mut bs = self.material.sample_local(self.uv, self.wo, u_lobe, u)?;
-        if !valid_pdf(bs.pdf) || !bs.weight.is_finite() || !self.passes_guard(bs.wi) {
+        if !valid_pdf(bs.pdf) || !bs.weight.is_finite() {
             return None;
         }
         if self.guard.is_some() {
-            bs.weight *= self.bump_weight(bs.wi);
+            // The side guard (0) and the terminator shadowing in one.
+            let weight = self.bump_weight(bs.wi);
+            if weight == 0.0 {
+                return None;
+            }
+            bs.weight *= weight;
         }
         bs.wi = self.frame.to_world(bs.wi);
         Some(bs)
