@@ -46,8 +46,8 @@
 //!   or `ggx`. Named conductors (`material`) use the RGB (η, k) that Mitsuba's RGB
 //!   variants derive from its spectral tables ([`fresnel::MITSUBA_METALS`]).
 //!   `roughplastic` takes the same `alpha` (isotropic only) and `distribution`.
-//!   `principled` maps `base_color`, `roughness`, `metallic`, `specular` (other
-//!   parameters are errors).
+//!   `principled` is Mitsuba's Disney BSDF ([`crate::material::DisneyPrincipled`]) with
+//!   all its parameters (`eta` or `specular`, not both; the three sampling rates).
 //!   `twosided` with two BSDFs uses the first in front, the second behind.
 //!   `bumpmap` (its one texture, any name, as the height; `scale`) may be a shape's BSDF
 //!   or a side of a `twosided` and wrap any BSDF ([`crate::material::BumpMap`]); inside
@@ -92,9 +92,9 @@ use crate::light::{
 };
 use crate::material::microfacet::Distribution;
 use crate::material::{
-    fresnel, Blend, BumpMap, ComplexIor, Conductor, Dielectric, Diffuse, Material, NormalMap,
-    OneSided, Plastic, Principled, RoughConductor, RoughDielectric, RoughPlastic, ThinDielectric,
-    TwoSided,
+    fresnel, Blend, BumpMap, ComplexIor, Conductor, Dielectric, Diffuse, DisneyPrincipled,
+    Material, NormalMap, OneSided, Plastic, RoughConductor, RoughDielectric, RoughPlastic,
+    ThinDielectric, TwoSided,
 };
 use crate::math::Transform;
 use crate::sampling::{IndependentSampler, Sampler};
@@ -1637,11 +1637,57 @@ impl Builder {
             }
             Some("principled") => {
                 self.check_children(node, &["texture"])?;
-                Material::Principled(Principled {
+                let spec_trans = self.optional_slot(node, "spec_trans")?;
+                // Mitsuba's `has_spec_trans`: given, and not the float 0.
+                let transmits = spec_trans
+                    .as_deref()
+                    .is_some_and(|t| !matches!(t, Texture::Constant(c) if *c == Vec3::ZERO));
+                let eta = match (node.float("eta")?, node.float("specular")?) {
+                    (Some(_), Some(_)) => {
+                        return Err(node.error("principled takes `eta` or `specular`, not both"))
+                    }
+                    // An index of 1 cannot refract: Mitsuba nudges it.
+                    (Some(eta), None) if transmits && eta == 1.0 => 1.001,
+                    (Some(eta), None) => eta,
+                    (None, Some(s)) if !(0.0..=1.0).contains(&s) => {
+                        return Err(
+                            node.error(format!("principled `specular` {s} is not in [0, 1]"))
+                        )
+                    }
+                    (None, specular) => {
+                        let s = specular.unwrap_or(0.5);
+                        let s = if transmits && s == 0.0 { 1e-3 } else { s };
+                        DisneyPrincipled::eta_from_specular(s)
+                    }
+                };
+                if !(eta.is_finite() && eta > 0.0) {
+                    return Err(node.error(format!("principled `eta` {eta} must be positive")));
+                }
+                let rate = |name: &str| -> Result<f32> {
+                    let r = node.float_or(name, 1.0)?;
+                    if r.is_finite() && r >= 0.0 {
+                        Ok(r)
+                    } else {
+                        Err(node.error(format!("principled `{name}` {r} must be at least 0")))
+                    }
+                };
+                let zero = Vec3::ZERO;
+                Material::DisneyPrincipled(DisneyPrincipled {
                     base_color: self.slot(node, "base_color", Vec3::splat(0.5))?,
                     roughness: self.slot(node, "roughness", Vec3::splat(0.5))?,
-                    metallic: self.slot(node, "metallic", Vec3::ZERO)?,
-                    specular: self.slot(node, "specular", Vec3::splat(0.5))?,
+                    anisotropic: self.slot(node, "anisotropic", zero)?,
+                    metallic: self.slot(node, "metallic", zero)?,
+                    spec_trans: spec_trans.unwrap_or_else(|| Arc::new(Texture::Constant(zero))),
+                    spec_tint: self.slot(node, "spec_tint", zero)?,
+                    sheen: self.slot(node, "sheen", zero)?,
+                    sheen_tint: self.slot(node, "sheen_tint", zero)?,
+                    flatness: self.slot(node, "flatness", zero)?,
+                    clearcoat: self.slot(node, "clearcoat", zero)?,
+                    clearcoat_gloss: self.slot(node, "clearcoat_gloss", zero)?,
+                    eta,
+                    specular_sampling_rate: rate("main_specular_sampling_rate")?,
+                    clearcoat_sampling_rate: rate("clearcoat_sampling_rate")?,
+                    diffuse_sampling_rate: rate("diffuse_reflectance_sampling_rate")?,
                 })
             }
             Some("hair") => {
@@ -1914,6 +1960,96 @@ mod tests {
         match m {
             Material::OneSided(o) => &o.inner,
             m => m,
+        }
+    }
+
+    /// `principled` is Mitsuba's Disney BSDF with every parameter in its field, `specular`
+    /// converted to an index, Mitsuba's nudges for a transmissive index of 1 or
+    /// specular 0, and its mistakes refused with the line named.
+    #[test]
+    fn principled_reads_every_parameter() {
+        let bsdf = |body: &str| {
+            let xml = format!(
+                r#"<scene version="3.0.0">
+                <shape type="sphere">
+                <bsdf type="principled">{body}</bsdf>
+                </shape><sensor type="perspective"/></scene>"#
+            );
+            load(&xml, &[]).map(|l| l.scene.instances[0].material.clone().unwrap())
+        };
+        let m = bsdf(
+            r#"<rgb name="base_color" value="0.1,0.2,0.3"/><float name="roughness" value="0.11"/>
+            <float name="anisotropic" value="0.12"/><float name="metallic" value="0.13"/>
+            <float name="spec_trans" value="0.14"/><float name="spec_tint" value="0.15"/>
+            <float name="sheen" value="0.16"/><float name="sheen_tint" value="0.17"/>
+            <float name="flatness" value="0.18"/><float name="clearcoat" value="0.19"/>
+            <float name="clearcoat_gloss" value="0.2"/><float name="eta" value="1.33"/>
+            <float name="main_specular_sampling_rate" value="0.5"/>
+            <float name="clearcoat_sampling_rate" value="0.25"/>
+            <float name="diffuse_reflectance_sampling_rate" value="2"/>"#,
+        )
+        .unwrap();
+        let Material::DisneyPrincipled(p) = &*m else {
+            panic!("{m:?}")
+        };
+        let at = |t: &Arc<Texture>| t.eval(Vec2::ZERO);
+        assert_eq!(at(&p.base_color), Vec3::new(0.1, 0.2, 0.3));
+        let scalars = [
+            &p.roughness,
+            &p.anisotropic,
+            &p.metallic,
+            &p.spec_trans,
+            &p.spec_tint,
+            &p.sheen,
+            &p.sheen_tint,
+            &p.flatness,
+            &p.clearcoat,
+        ];
+        for (k, t) in scalars.into_iter().enumerate() {
+            assert!(
+                (at(t).x - (0.11 + 0.01 * k as f32)).abs() < 1e-6,
+                "parameter {k}"
+            );
+        }
+        assert!((at(&p.clearcoat_gloss).x - 0.2).abs() < 1e-6);
+        assert_eq!(p.eta, 1.33);
+        let rates = (
+            p.specular_sampling_rate,
+            p.clearcoat_sampling_rate,
+            p.diffuse_sampling_rate,
+        );
+        assert_eq!(rates, (0.5, 0.25, 2.0));
+
+        let eta = |body: &str| match &*bsdf(body).unwrap() {
+            Material::DisneyPrincipled(p) => p.eta,
+            m => panic!("{m:?}"),
+        };
+        // specular 0.5 (the default): η = 2/(1 − √0.04) − 1 = 1.5.
+        assert!((eta("") - 1.5).abs() < 1e-6);
+        assert!((eta(r#"<float name="specular" value="0.5"/>"#) - 1.5).abs() < 1e-6);
+        assert_eq!(eta(r#"<float name="specular" value="0"/>"#), 1.0);
+        let nudged =
+            eta(r#"<float name="specular" value="0"/><float name="spec_trans" value="1"/>"#);
+        assert_eq!(nudged, DisneyPrincipled::eta_from_specular(1e-3));
+        assert!(nudged > 1.0);
+        let glass = r#"<float name="eta" value="1"/><float name="spec_trans" value="0.5"/>"#;
+        assert_eq!(eta(glass), 1.001);
+
+        for (body, needle) in [
+            (
+                r#"<float name="eta" value="1.5"/><float name="specular" value="0.5"/>"#,
+                "not both",
+            ),
+            (r#"<float name="specular" value="1.5"/>"#, "not in [0, 1]"),
+            (r#"<float name="eta" value="-1"/>"#, "must be positive"),
+            (
+                r#"<float name="clearcoat_sampling_rate" value="-1"/>"#,
+                "must be at least 0",
+            ),
+            (r#"<float name="shininess" value="1"/>"#, "shininess"),
+        ] {
+            let e = bsdf(body).unwrap_err().to_string();
+            assert!(e.contains(needle) && e.contains("m.xml:3"), "{body}: {e}");
         }
     }
 

@@ -42,6 +42,7 @@ mod bumpmap;
 mod conductor;
 mod dielectric;
 mod diffuse;
+mod disney_principled;
 pub mod fresnel;
 mod hair;
 pub mod microfacet;
@@ -63,6 +64,7 @@ pub use bumpmap::BumpMap;
 pub use conductor::{ComplexIor, Conductor};
 pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
+pub use disney_principled::DisneyPrincipled;
 pub use hair::{sigma_a_from_color, sigma_a_from_melanin, Hair, HairAbsorption, HairParameters};
 pub use normalmap::NormalMap;
 pub use onesided::OneSided;
@@ -107,6 +109,8 @@ pub enum Material {
     Plastic(Plastic),
     RoughPlastic(RoughPlastic),
     Principled(Principled),
+    /// Mitsuba 3's `principled` (Burley's Disney BSDF).
+    DisneyPrincipled(DisneyPrincipled),
     TwoSided(TwoSided),
     OneSided(OneSided),
     Blend(Blend),
@@ -431,6 +435,7 @@ impl Material {
             Material::Plastic(m) => m.eval(uv, wo, wi),
             Material::RoughPlastic(m) => m.eval(uv, wo, wi),
             Material::Principled(m) => m.eval(uv, wo, wi),
+            Material::DisneyPrincipled(m) => m.eval(uv, wo, wi),
             Material::TwoSided(m) => m.eval(uv, wo, wi),
             Material::OneSided(m) => m.eval(uv, wo, wi),
             Material::Blend(m) => m.eval(uv, wo, wi),
@@ -466,6 +471,7 @@ impl Material {
             Material::Plastic(m) => m.pdf(uv, wo, wi),
             Material::RoughPlastic(m) => m.pdf(uv, wo, wi),
             Material::Principled(m) => m.pdf(uv, wo, wi),
+            Material::DisneyPrincipled(m) => m.pdf(uv, wo, wi),
             Material::TwoSided(m) => m.pdf(uv, wo, wi),
             Material::OneSided(m) => m.pdf(uv, wo, wi),
             Material::Blend(m) => m.pdf(uv, wo, wi),
@@ -501,6 +507,7 @@ impl Material {
             Material::Plastic(m) => m.sample(uv, wo, u_lobe, u),
             Material::RoughPlastic(m) => m.sample(uv, wo, u_lobe, u),
             Material::Principled(m) => m.sample(uv, wo, u_lobe, u),
+            Material::DisneyPrincipled(m) => m.sample(uv, wo, u_lobe, u),
             Material::TwoSided(m) => m.sample(uv, wo, u_lobe, u),
             Material::OneSided(m) => m.sample(uv, wo, u_lobe, u),
             Material::Blend(m) => m.sample(uv, wo, u_lobe, u),
@@ -526,6 +533,7 @@ impl Material {
             Material::Plastic(m) => m.diffuse.eval(uv),
             Material::RoughPlastic(m) => m.diffuse.eval(uv),
             Material::Principled(m) => m.base_color.eval(uv),
+            Material::DisneyPrincipled(m) => m.base_color.eval(uv),
             Material::TwoSided(m) => m.inner.albedo(uv),
             Material::OneSided(m) => m.inner.albedo(uv),
             Material::NormalMap(m) => m.inner.albedo(uv),
@@ -551,6 +559,7 @@ impl Material {
             | Material::Plastic(_)
             | Material::RoughPlastic(_)
             | Material::Principled(_)
+            | Material::DisneyPrincipled(_)
             | Material::Hair(_) => false,
             // One-sided diffuse (Mitsuba's) without the call.
             Material::OneSided(m) if matches!(*m.inner, Material::Diffuse(_)) => false,
