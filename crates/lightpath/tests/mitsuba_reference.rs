@@ -20,7 +20,7 @@
 //! sphere with `to_uv`, a mesh with texture coordinates and a negative scale, and inside
 //! a `twosided` seen from behind), `principled` (every lobe: a plain base, a tinted
 //! anisotropic metal, a clearcoat, a transmissive sphere, sheen with flatness, and a
-//! textured mix), and round
+//! textured mix) and `principledthin` (a sheet lit from behind), and round
 //! linear curves (`linearcurve`: tapering strands, a wire with sharp joints placed by a
 //! scaling `to_world`) and cubic B-spline curves (`bsplinecurve`: wavy tapering strands
 //! and a thick arch).
@@ -338,16 +338,24 @@ fn principled_matches_mitsuba() {
     check("principled", 2048);
 }
 
-/// The principled comparison can fail: the transmissive sphere made opaque is caught.
+/// The principled comparison can fail: the transmissive sphere made opaque, and the
+/// thin sheet without its diffuse transmission (dark where the sun shines through), are
+/// caught.
 /// (The lobes one by one, and the parameters' mapping, are checked value by value in the
 /// material and Mitsuba reader tests; each sphere is too small a part of this image for
 /// the metric to see, say, its sheen alone.)
 #[test]
-fn the_principled_comparison_catches_an_opaque_glass() {
+fn the_principled_comparison_catches_missing_transmission() {
     check_caught(
         "principled",
         r#"<float name="spec_trans" value="0.9"/>"#,
         r#"<float name="spec_trans" value="0"/>"#,
         "an opaque glass",
+    );
+    check_caught(
+        "principled",
+        r#"<float name="diff_trans" value="1.2"/>"#,
+        r#"<float name="diff_trans" value="0"/>"#,
+        "a sheet without diffuse transmission",
     );
 }

@@ -47,7 +47,8 @@
 //!   variants derive from its spectral tables ([`fresnel::MITSUBA_METALS`]).
 //!   `roughplastic` takes the same `alpha` (isotropic only) and `distribution`.
 //!   `principled` is Mitsuba's Disney BSDF ([`crate::material::DisneyPrincipled`]) with
-//!   all its parameters (`eta` or `specular`, not both; the three sampling rates).
+//!   all its parameters (`eta` or `specular`, not both; the three sampling rates);
+//!   `principledthin` its thin-sheet sibling ([`crate::material::DisneyThin`]), likewise.
 //!   `twosided` with two BSDFs uses the first in front, the second behind.
 //!   `bumpmap` (its one texture, any name, as the height; `scale`) may be a shape's BSDF
 //!   or a side of a `twosided` and wrap any BSDF ([`crate::material::BumpMap`]); inside
@@ -93,8 +94,8 @@ use crate::light::{
 use crate::material::microfacet::Distribution;
 use crate::material::{
     fresnel, Blend, BumpMap, ComplexIor, Conductor, Dielectric, Diffuse, DisneyPrincipled,
-    Material, NormalMap, OneSided, Plastic, RoughConductor, RoughDielectric, RoughPlastic,
-    ThinDielectric, TwoSided,
+    DisneyThin, Material, NormalMap, OneSided, Plastic, RoughConductor, RoughDielectric,
+    RoughPlastic, ThinDielectric, TwoSided,
 };
 use crate::math::Transform;
 use crate::sampling::{IndependentSampler, Sampler};
@@ -417,6 +418,7 @@ const BSDFS: &[&str] = &[
     "plastic",
     "roughplastic",
     "principled",
+    "principledthin",
     "twosided",
     "blendbsdf",
     "normalmap",
@@ -1690,6 +1692,38 @@ impl Builder {
                     diffuse_sampling_rate: rate("diffuse_reflectance_sampling_rate")?,
                 })
             }
+            Some("principledthin") => {
+                self.check_children(node, &["texture"])?;
+                let rate = |name: &str| -> Result<f32> {
+                    let r = node.float_or(name, 1.0)?;
+                    if r.is_finite() && r >= 0.0 {
+                        Ok(r)
+                    } else {
+                        Err(node.error(format!("principledthin `{name}` {r} must be at least 0")))
+                    }
+                };
+                let zero = Vec3::ZERO;
+                Material::DisneyThin(DisneyThin {
+                    base_color: self.slot(node, "base_color", Vec3::splat(0.5))?,
+                    roughness: self.slot(node, "roughness", Vec3::splat(0.5))?,
+                    anisotropic: self.slot(node, "anisotropic", zero)?,
+                    spec_trans: self.slot(node, "spec_trans", zero)?,
+                    spec_tint: self.slot(node, "spec_tint", zero)?,
+                    sheen: self.slot(node, "sheen", zero)?,
+                    sheen_tint: self.slot(node, "sheen_tint", zero)?,
+                    flatness: self.slot(node, "flatness", zero)?,
+                    diff_trans: self.slot(node, "diff_trans", zero)?,
+                    eta: self.slot(node, "eta", Vec3::splat(1.5))?,
+                    specular_reflectance_sampling_rate: rate("specular_reflectance_sampling_rate")?,
+                    specular_transmittance_sampling_rate: rate(
+                        "specular_transmittance_sampling_rate",
+                    )?,
+                    diffuse_reflectance_sampling_rate: rate("diffuse_reflectance_sampling_rate")?,
+                    diffuse_transmittance_sampling_rate: rate(
+                        "diffuse_transmittance_sampling_rate",
+                    )?,
+                })
+            }
             Some("hair") => {
                 self.check_children(node, &["texture"])?;
                 let params = crate::material::HairParameters {
@@ -2051,6 +2085,52 @@ mod tests {
             let e = bsdf(body).unwrap_err().to_string();
             assert!(e.contains(needle) && e.contains("m.xml:3"), "{body}: {e}");
         }
+
+        // `principledthin`: its own parameters, `eta` a texture (default 1.5).
+        let xml = r#"<scene version="3.0.0"><shape type="rectangle">
+            <bsdf type="principledthin"><rgb name="base_color" value="0.1,0.2,0.3"/>
+            <float name="roughness" value="0.11"/><float name="anisotropic" value="0.12"/>
+            <float name="spec_trans" value="0.13"/><float name="spec_tint" value="0.14"/>
+            <float name="sheen" value="0.15"/><float name="sheen_tint" value="0.16"/>
+            <float name="flatness" value="0.17"/><float name="diff_trans" value="0.18"/>
+            <float name="eta" value="0.19"/>
+            <float name="specular_reflectance_sampling_rate" value="2"/>
+            <float name="specular_transmittance_sampling_rate" value="3"/>
+            <float name="diffuse_reflectance_sampling_rate" value="4"/>
+            <float name="diffuse_transmittance_sampling_rate" value="5"/>
+            </bsdf></shape><sensor type="perspective"/></scene>"#;
+        let m = load(xml, &[]).unwrap().scene.instances[0]
+            .material
+            .clone()
+            .unwrap();
+        let Material::DisneyThin(t) = &*m else {
+            panic!("{m:?}")
+        };
+        assert_eq!(at(&t.base_color), Vec3::new(0.1, 0.2, 0.3));
+        let scalars = [
+            &t.roughness,
+            &t.anisotropic,
+            &t.spec_trans,
+            &t.spec_tint,
+            &t.sheen,
+            &t.sheen_tint,
+            &t.flatness,
+            &t.diff_trans,
+            &t.eta,
+        ];
+        for (k, p) in scalars.into_iter().enumerate() {
+            assert!(
+                (at(p).x - (0.11 + 0.01 * k as f32)).abs() < 1e-6,
+                "thin parameter {k}"
+            );
+        }
+        let rates = [
+            t.specular_reflectance_sampling_rate,
+            t.specular_transmittance_sampling_rate,
+            t.diffuse_reflectance_sampling_rate,
+            t.diffuse_transmittance_sampling_rate,
+        ];
+        assert_eq!(rates, [2.0, 3.0, 4.0, 5.0]);
     }
 
     /// Camera rays start at `near_clip` and end at `far_clip`: a sphere nearer than the

@@ -62,7 +62,7 @@ use glam::{Vec2, Vec3};
 use std::sync::Arc;
 
 /// Rec. 709 luminance weights (Mitsuba's `luminance` for RGB).
-const LUMINANCE: Vec3 = Vec3::new(0.212671, 0.715160, 0.072169);
+pub(super) const LUMINANCE: Vec3 = Vec3::new(0.212671, 0.715160, 0.072169);
 
 #[derive(Debug, Clone)]
 pub struct DisneyPrincipled {
@@ -104,15 +104,30 @@ struct Params {
 }
 
 impl Params {
-    /// The base colour over its luminance (white for a black base).
     fn tint(&self) -> Vec3 {
-        let lum = self.base.dot(LUMINANCE);
-        if lum > 0.0 {
-            self.base / lum
-        } else {
-            Vec3::ONE
-        }
+        tint(self.base)
     }
+}
+
+/// A colour over its luminance (white for black): the hue that `spec_tint` and
+/// `sheen_tint` blend towards.
+#[inline]
+pub(super) fn tint(base: Vec3) -> Vec3 {
+    let lum = base.dot(LUMINANCE);
+    if lum > 0.0 {
+        base / lum
+    } else {
+        Vec3::ONE
+    }
+}
+
+/// The GGX distribution for `roughness` and `anisotropic`: α = max(0.001, roughness²)
+/// divided (x) and multiplied (y) by √(1 − 0.9·anisotropic) (Burley 2012).
+#[inline]
+pub(super) fn ggx(roughness: f32, anisotropic: f32) -> Microfacet {
+    let r2 = roughness * roughness;
+    let aspect = (1.0 - 0.9 * anisotropic).sqrt();
+    Microfacet::new((r2 / aspect).max(0.001), (r2 * aspect).max(0.001))
 }
 
 /// Lobe selection probabilities (normalised): diffuse, clearcoat, transmission,
@@ -126,7 +141,7 @@ struct Choice {
 
 /// Schlick's weight (1 − cos)⁵, cos clamped to [0, 1].
 #[inline]
-fn schlick_weight(cos: f32) -> f32 {
+pub(super) fn schlick_weight(cos: f32) -> f32 {
     let m = (1.0 - cos).clamp(0.0, 1.0);
     let m2 = m * m;
     m2 * m2 * m
@@ -136,7 +151,7 @@ fn schlick_weight(cos: f32) -> f32 {
 /// cosine `cos_i` (negative: from inside) of an interface of relative index `eta`; going
 /// into the less dense medium it uses the refracted cosine (Mitsuba's `calc_schlick`).
 #[inline]
-fn schlick(r0: Vec3, cos_i: f32, eta: f32) -> Vec3 {
+pub(super) fn schlick(r0: Vec3, cos_i: f32, eta: f32) -> Vec3 {
     let eta_it = if cos_i >= 0.0 { eta } else { 1.0 / eta };
     let w = if eta_it > 1.0 {
         schlick_weight(cos_i.abs())
@@ -150,7 +165,7 @@ fn schlick(r0: Vec3, cos_i: f32, eta: f32) -> Vec3 {
 
 /// Linear interpolation from `a` (t = 0) to `b` (t = 1).
 #[inline]
-fn lerp(a: f32, b: f32, t: f32) -> f32 {
+pub(super) fn lerp(a: f32, b: f32, t: f32) -> f32 {
     a * (1.0 - t) + b * t
 }
 
@@ -201,8 +216,6 @@ impl DisneyPrincipled {
         let anisotropic = scalar(&self.anisotropic, uv);
         let metallic = scalar(&self.metallic, uv);
         let spec_trans = scalar(&self.spec_trans, uv);
-        let r2 = roughness * roughness;
-        let aspect = (1.0 - 0.9 * anisotropic).sqrt();
         Params {
             base: self.base_color.eval(uv),
             roughness,
@@ -215,7 +228,7 @@ impl DisneyPrincipled {
             clearcoat_gloss: scalar(&self.clearcoat_gloss, uv),
             brdf: (1.0 - metallic) * (1.0 - spec_trans),
             bsdf: (1.0 - metallic) * spec_trans,
-            ggx: Microfacet::new((r2 / aspect).max(0.001), (r2 * aspect).max(0.001)),
+            ggx: ggx(roughness, anisotropic),
         }
     }
 

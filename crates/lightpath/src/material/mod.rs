@@ -43,6 +43,7 @@ mod conductor;
 mod dielectric;
 mod diffuse;
 mod disney_principled;
+mod disney_thin;
 pub mod fresnel;
 mod hair;
 pub mod microfacet;
@@ -65,6 +66,7 @@ pub use conductor::{ComplexIor, Conductor};
 pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
 pub use disney_principled::DisneyPrincipled;
+pub use disney_thin::DisneyThin;
 pub use hair::{sigma_a_from_color, sigma_a_from_melanin, Hair, HairAbsorption, HairParameters};
 pub use normalmap::NormalMap;
 pub use onesided::OneSided;
@@ -111,6 +113,8 @@ pub enum Material {
     Principled(Principled),
     /// Mitsuba 3's `principled` (Burley's Disney BSDF).
     DisneyPrincipled(DisneyPrincipled),
+    /// Mitsuba 3's `principledthin` (Burley's thin-sheet Disney BSDF).
+    DisneyThin(DisneyThin),
     TwoSided(TwoSided),
     OneSided(OneSided),
     Blend(Blend),
@@ -436,6 +440,7 @@ impl Material {
             Material::RoughPlastic(m) => m.eval(uv, wo, wi),
             Material::Principled(m) => m.eval(uv, wo, wi),
             Material::DisneyPrincipled(m) => m.eval(uv, wo, wi),
+            Material::DisneyThin(m) => m.eval(uv, wo, wi),
             Material::TwoSided(m) => m.eval(uv, wo, wi),
             Material::OneSided(m) => m.eval(uv, wo, wi),
             Material::Blend(m) => m.eval(uv, wo, wi),
@@ -472,6 +477,7 @@ impl Material {
             Material::RoughPlastic(m) => m.pdf(uv, wo, wi),
             Material::Principled(m) => m.pdf(uv, wo, wi),
             Material::DisneyPrincipled(m) => m.pdf(uv, wo, wi),
+            Material::DisneyThin(m) => m.pdf(uv, wo, wi),
             Material::TwoSided(m) => m.pdf(uv, wo, wi),
             Material::OneSided(m) => m.pdf(uv, wo, wi),
             Material::Blend(m) => m.pdf(uv, wo, wi),
@@ -508,6 +514,7 @@ impl Material {
             Material::RoughPlastic(m) => m.sample(uv, wo, u_lobe, u),
             Material::Principled(m) => m.sample(uv, wo, u_lobe, u),
             Material::DisneyPrincipled(m) => m.sample(uv, wo, u_lobe, u),
+            Material::DisneyThin(m) => m.sample(uv, wo, u_lobe, u),
             Material::TwoSided(m) => m.sample(uv, wo, u_lobe, u),
             Material::OneSided(m) => m.sample(uv, wo, u_lobe, u),
             Material::Blend(m) => m.sample(uv, wo, u_lobe, u),
@@ -534,6 +541,7 @@ impl Material {
             Material::RoughPlastic(m) => m.diffuse.eval(uv),
             Material::Principled(m) => m.base_color.eval(uv),
             Material::DisneyPrincipled(m) => m.base_color.eval(uv),
+            Material::DisneyThin(m) => m.base_color.eval(uv),
             Material::TwoSided(m) => m.inner.albedo(uv),
             Material::OneSided(m) => m.inner.albedo(uv),
             Material::NormalMap(m) => m.inner.albedo(uv),
@@ -560,6 +568,7 @@ impl Material {
             | Material::RoughPlastic(_)
             | Material::Principled(_)
             | Material::DisneyPrincipled(_)
+            | Material::DisneyThin(_)
             | Material::Hair(_) => false,
             // One-sided diffuse (Mitsuba's) without the call.
             Material::OneSided(m) if matches!(*m.inner, Material::Diffuse(_)) => false,
