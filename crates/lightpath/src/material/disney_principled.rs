@@ -163,6 +163,43 @@ pub(super) fn schlick(r0: Vec3, cos_i: f32, eta: f32) -> Vec3 {
     r0 + (Vec3::ONE - r0) * w
 }
 
+/// Burley's diffuse with retro-reflection for |cos θo|, |cos θi| and cos θd = m·wi,
+/// blended towards Hanrahan–Krueger's flattened term (a fake subsurface) by `flatness`:
+/// the factor of base_color/π·|cos θi|.
+#[inline]
+pub(super) fn burley_diffuse(
+    roughness: f32,
+    flatness: f32,
+    cos_o: f32,
+    cos_i: f32,
+    cos_d: f32,
+) -> f32 {
+    let fo = schlick_weight(cos_i);
+    let fi = schlick_weight(cos_o);
+    let rr = 2.0 * roughness * cos_d * cos_d;
+    let lobe = (1.0 - 0.5 * fi) * (1.0 - 0.5 * fo) + rr * (fo + fi + fo * fi * (rr - 1.0));
+    if flatness > 0.0 {
+        let fss90 = 0.5 * rr;
+        let fss = lerp(1.0, fss90, fo) * lerp(1.0, fss90, fi);
+        let f_ss = 1.25 * (fss * (1.0 / (cos_i + cos_o) - 0.5) + 0.5);
+        lerp(lobe, f_ss, flatness)
+    } else {
+        lobe
+    }
+}
+
+/// The sheen's colour and angular falloff for cos θd = m·wi: (1 − |cos θd|)⁵ times
+/// white tinted towards the base colour's hue by `sheen_tint`.
+#[inline]
+pub(super) fn sheen(base: Vec3, sheen_tint: f32, cos_d: f32) -> Vec3 {
+    let colour = if sheen_tint > 0.0 {
+        Vec3::ONE + (tint(base) - Vec3::ONE) * sheen_tint
+    } else {
+        Vec3::ONE
+    };
+    colour * schlick_weight(cos_d.abs())
+}
+
 /// Linear interpolation from `a` (t = 0) to `b` (t = 1).
 #[inline]
 pub(super) fn lerp(a: f32, b: f32, t: f32) -> f32 {
@@ -319,28 +356,12 @@ impl DisneyPrincipled {
             value += Vec3::splat(p.clearcoat * 0.25 * fcc * dcc * gcc * cos_i.abs());
         }
         if reflect && front && p.brdf > 0.0 {
-            let fo = schlick_weight(cos_i.abs());
-            let fi = schlick_weight(cos_o.abs());
-            let cos_d = m.dot(wi);
-            let rr = 2.0 * p.roughness * cos_d * cos_d;
-            let mut lobe =
-                (1.0 - 0.5 * fi) * (1.0 - 0.5 * fo) + rr * (fo + fi + fo * fi * (rr - 1.0));
-            if p.flatness > 0.0 {
-                // Hanrahan–Krueger's flattened retro-reflection (fake subsurface).
-                let fss90 = 0.5 * rr;
-                let fss = lerp(1.0, fss90, fo) * lerp(1.0, fss90, fi);
-                let f_ss = 1.25 * (fss * (1.0 / (cos_i.abs() + cos_o.abs()) - 0.5) + 0.5);
-                lobe = lerp(lobe, f_ss, p.flatness);
-            }
-            value += p.base * (p.brdf * cos_i.abs() * INV_PI * lobe);
+            let (cos_o, cos_i, cos_d) = (cos_o.abs(), cos_i.abs(), m.dot(wi));
+            let lobe = burley_diffuse(p.roughness, p.flatness, cos_o, cos_i, cos_d);
+            value += p.base * (p.brdf * cos_i * INV_PI * lobe);
             if p.sheen > 0.0 && p.metallic < 1.0 {
-                let tint = if p.sheen_tint > 0.0 {
-                    Vec3::ONE + (p.tint() - Vec3::ONE) * p.sheen_tint
-                } else {
-                    Vec3::ONE
-                };
-                let fd = schlick_weight(cos_d.abs());
-                value += tint * (p.sheen * (1.0 - p.metallic) * fd * cos_i.abs());
+                value +=
+                    sheen(p.base, p.sheen_tint, cos_d) * (p.sheen * (1.0 - p.metallic) * cos_i);
             }
         }
 

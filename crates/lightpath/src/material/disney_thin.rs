@@ -36,7 +36,7 @@
 //! </bsdf>
 //! ```
 
-use super::disney_principled::{ggx, lerp, schlick, schlick_weight, tint};
+use super::disney_principled::{burley_diffuse, ggx, schlick, sheen, tint};
 use super::fresnel::fresnel_dielectric_cos;
 use super::microfacet::reflect;
 use super::{scalar, valid_pdf, BsdfSample};
@@ -166,28 +166,12 @@ impl DisneyThin {
             }
         }
         if reflect && s < 1.0 && t < 1.0 {
-            let fo = schlick_weight(cos_i);
-            let fi = schlick_weight(cos_o);
             let cos_d = m.dot(wi);
-            let rr = 2.0 * p.roughness * cos_d * cos_d;
-            let mut lobe =
-                (1.0 - 0.5 * fi) * (1.0 - 0.5 * fo) + rr * (fo + fi + fo * fi * (rr - 1.0));
-            if p.flatness > 0.0 {
-                let fss90 = 0.5 * rr;
-                let fss = lerp(1.0, fss90, fo) * lerp(1.0, fss90, fi);
-                let f_ss = 1.25 * (fss * (1.0 / (cos_i + cos_o) - 0.5) + 0.5);
-                lobe = lerp(lobe, f_ss, p.flatness);
-            }
+            let lobe = burley_diffuse(p.roughness, p.flatness, cos_o, cos_i, cos_d);
             let weight = (1.0 - s) * (1.0 - t);
             value += p.base * (weight * cos_i * INV_PI * lobe);
             if p.sheen > 0.0 {
-                let sheen_tint = if p.sheen_tint > 0.0 {
-                    Vec3::ONE + (tint(p.base) - Vec3::ONE) * p.sheen_tint
-                } else {
-                    Vec3::ONE
-                };
-                let fd = schlick_weight(cos_d.abs());
-                value += sheen_tint * (p.sheen * weight * fd * cos_i);
+                value += sheen(p.base, p.sheen_tint, cos_d) * (p.sheen * weight * cos_i);
             }
         }
         if refract && s < 1.0 && t > 0.0 {

@@ -1261,13 +1261,40 @@ fn rough_plastic_matches_mitsuba() {
     }
 }
 
+/// A value measured from Mitsuba: (case, θo, φo, θi, φi, f·|cos θi|, pdf).
+type Measured = (usize, f32, f32, f32, f32, [f32; 3], f32);
+
+/// Asserts that the materials `material(case)` give Mitsuba's measured values and
+/// densities to 2e-4 (relative to the larger of the value and 1e-3); `pdf(case, wo,
+/// measured)` is the density expected of ours.
+fn check_measured(
+    reference: &[Measured],
+    material: impl Fn(usize) -> Material,
+    pdf: impl Fn(usize, Vec3, f32) -> f32,
+) {
+    for &(i, to, po, ti, pi, value, measured) in reference {
+        let m = material(i);
+        let (wo, wi) = (dir(to, po), dir(ti, pi));
+        let f = m.eval_local(UV, wo, wi);
+        let p = m.pdf_local(UV, wo, wi);
+        let value = Vec3::from(value);
+        let err = (f - value).abs().max_element() / value.max_element().max(1e-3);
+        let at = format!("case {i} θo={to} φo={po} θi={ti} φi={pi}");
+        assert!(err < 2e-4, "{at}: {f} vs {value}");
+        let expected = pdf(i, wo, measured);
+        assert!(
+            (p - expected).abs() <= 2e-4 * expected.max(1e-3),
+            "{at}: pdf {p} vs {expected}"
+        );
+    }
+}
+
 /// Mitsuba 3.9.1's `principled` (scalar_rgb), eval and pdf at pairs of directions for
 /// seven materials exercising every lobe (`DISNEY_CASES`): (case, θo, φo, θi, φi,
 /// f·|cos θi|, pdf). Where wo is inside a material without transmission Mitsuba reports
 /// a density for a lobe it never samples; ours is 0 there (and both values are black).
 #[test]
 fn disney_principled_matches_mitsuba() {
-    type Measured = (usize, f32, f32, f32, f32, [f32; 3], f32);
     #[rustfmt::skip]
     let reference: [Measured; 70] = [
         (0, 30.0, 0.0, 50.0, 180.0, [0.1988501, 0.0965656, 0.0556518], 0.4905503),
@@ -1341,24 +1368,14 @@ fn disney_principled_matches_mitsuba() {
         (6, 150.0, 0.0, 20.0, 10.0, [0.0, 0.0, 0.0], 0.0),
         (6, 85.0, 0.0, 40.0, 0.0, [0.1096424, 0.06347606, 0.04808725], 0.1185185),
     ];
-    for (i, to, po, ti, pi, value, pdf) in reference {
-        let m = disney_case(i);
-        let (wo, wi) = (dir(to, po), dir(ti, pi));
-        let f = m.eval_local(UV, wo, wi);
-        let p = m.pdf_local(UV, wo, wi);
-        let value = Vec3::from(value);
-        let err = (f - value).abs().max_element() / value.max_element().max(1e-3);
-        assert!(
-            err < 2e-4,
-            "case {i} θo={to} φo={po} θi={ti} φi={pi}: {f} vs {value}"
-        );
-        let inside_opaque = wo.z < 0.0 && DISNEY_CASES[i].1[3] == 0.0;
-        let expected = if inside_opaque { 0.0 } else { pdf };
-        assert!(
-            (p - expected).abs() <= 2e-4 * expected.max(1e-3),
-            "case {i} θo={to} φo={po} θi={ti} φi={pi}: pdf {p} vs {expected}"
-        );
-    }
+    check_measured(&reference, disney_case, |i, wo, pdf| {
+        // Inside a material without transmission.
+        if wo.z < 0.0 && DISNEY_CASES[i].1[3] == 0.0 {
+            0.0
+        } else {
+            pdf
+        }
+    });
 }
 
 /// Mitsuba 3.9.1's `principledthin` (scalar_rgb), eval and pdf at pairs of directions
@@ -1366,7 +1383,6 @@ fn disney_principled_matches_mitsuba() {
 /// φo, θi, φi, f·|cos θi|, pdf).
 #[test]
 fn disney_thin_matches_mitsuba() {
-    type Measured = (usize, f32, f32, f32, f32, [f32; 3], f32);
     #[rustfmt::skip]
     let reference: [Measured; 60] = [
         (0, 30.0, 0.0, 50.0, 180.0, [0.03682243, 0.07364486, 0.02454829], 0.1227634),
@@ -1430,22 +1446,7 @@ fn disney_thin_matches_mitsuba() {
         (4, 40.0, 0.0, 150.0, 0.0, [0.1000198, 0.1000198, 0.1000198], 0.1967104),
         (4, 20.0, 30.0, 165.0, 200.0, [0.4533598, 0.4533598, 0.4533598], 0.5806782),
     ];
-    for (i, to, po, ti, pi, value, pdf) in reference {
-        let m = thin_case(i);
-        let (wo, wi) = (dir(to, po), dir(ti, pi));
-        let f = m.eval_local(UV, wo, wi);
-        let p = m.pdf_local(UV, wo, wi);
-        let value = Vec3::from(value);
-        let err = (f - value).abs().max_element() / value.max_element().max(1e-3);
-        assert!(
-            err < 2e-4,
-            "case {i} θo={to} φo={po} θi={ti} φi={pi}: {f} vs {value}"
-        );
-        assert!(
-            (p - pdf).abs() <= 2e-4 * pdf.max(1e-3),
-            "case {i} θo={to} φo={po} θi={ti} φi={pi}: pdf {p} vs {pdf}"
-        );
-    }
+    check_measured(&reference, thin_case, |_, _, pdf| pdf);
 }
 
 /// The models are the course's formulas, checked at one pair of directions.
