@@ -31,6 +31,9 @@
 //! <bsdf type="bumpmap"><texture name="h" type="bitmap"><string name="filename" value="h.png"/></texture>
 //!     <float name="scale" value="0.05"/><bsdf type="roughplastic"/></bsdf>
 //! <bsdf type="hair"><float name="eumelanin" value="1.3"/></bsdf>
+//! <!-- Mitsuba dialect only: Mitsuba's Disney BSDFs (`principled` there is this one) -->
+//! <bsdf type="principled"><rgb name="base_color" value="0.8,0.2,0.1"/><float name="clearcoat" value="0.5"/></bsdf>
+//! <bsdf type="principledthin"><float name="diff_trans" value="0.8"/></bsdf>
 //! ```
 //!
 //! Scalar parameters (roughness, metallic, ...) may be `<float>`s or textures; a texture
