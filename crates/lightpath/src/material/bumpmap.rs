@@ -56,8 +56,8 @@ pub struct BumpMap {
     /// about the unperturbed one (Schüssler et al. 2017's flip; Mitsuba's
     /// `flip_invalid_normals`, on by default there).
     pub flip_invalid: bool,
-    /// Attenuate light at grazing angles by [`super::terminator_shadowing`] (Mitsuba's
-    /// `use_shadowing_function`, on by default there).
+    /// Attenuate light at grazing angles by the terminator shadowing of Conty Estevez
+    /// et al. 2019 (Mitsuba's `use_shadowing_function`, on by default there).
     pub shadowing: bool,
 }
 

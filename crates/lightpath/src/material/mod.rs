@@ -221,7 +221,7 @@ pub struct Bsdf<'a> {
     /// A direction on different sides of it and of the perturbed normal carries nothing.
     pub guard: Option<Vec3>,
     /// Under a bump map with terminator shadowing: its cosine of the perturbed normal's
-    /// tilt (see [`terminator_shadowing`]); 1 (no shadowing) otherwise.
+    /// tilt (Conty Estevez et al. 2019); 1 (no shadowing) otherwise.
     pub shadowing_cos: f32,
 }
 

@@ -30,8 +30,8 @@ pub struct NormalMap {
     /// about the unperturbed one (Mitsuba's `flip_invalid_normals`, on by default there;
     /// see [`super::BumpMap`]).
     pub flip_invalid: bool,
-    /// Attenuate light at grazing angles by [`super::terminator_shadowing`] (Mitsuba's
-    /// `use_shadowing_function`, on by default there).
+    /// Attenuate light at grazing angles by the terminator shadowing of Conty Estevez
+    /// et al. 2019 (Mitsuba's `use_shadowing_function`, on by default there).
     pub shadowing: bool,
 }
 
