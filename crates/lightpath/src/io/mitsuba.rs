@@ -426,6 +426,16 @@ const BSDFS: &[&str] = &[
     "hair",
 ];
 
+/// A Disney BSDF's `*_sampling_rate` (default 1): finite and not negative.
+fn sampling_rate(node: &Node, plugin: &str, name: &str) -> Result<f32> {
+    let r = node.float_or(name, 1.0)?;
+    if r.is_finite() && r >= 0.0 {
+        Ok(r)
+    } else {
+        Err(node.error(format!("{plugin} `{name}` {r} must be at least 0")))
+    }
+}
+
 /// Where a `mask` BSDF applies.
 const MASK_SHAPES: &str =
     "a `mask` BSDF is supported on meshes (`obj`, `ply`, `serialized`) and rectangles, as the shape's outermost BSDF";
@@ -1665,14 +1675,7 @@ impl Builder {
                 if !(eta.is_finite() && eta > 0.0) {
                     return Err(node.error(format!("principled `eta` {eta} must be positive")));
                 }
-                let rate = |name: &str| -> Result<f32> {
-                    let r = node.float_or(name, 1.0)?;
-                    if r.is_finite() && r >= 0.0 {
-                        Ok(r)
-                    } else {
-                        Err(node.error(format!("principled `{name}` {r} must be at least 0")))
-                    }
-                };
+                let rate = |name: &str| sampling_rate(node, "principled", name);
                 let zero = Vec3::ZERO;
                 Material::DisneyPrincipled(DisneyPrincipled {
                     base_color: self.slot(node, "base_color", Vec3::splat(0.5))?,
@@ -1694,14 +1697,7 @@ impl Builder {
             }
             Some("principledthin") => {
                 self.check_children(node, &["texture"])?;
-                let rate = |name: &str| -> Result<f32> {
-                    let r = node.float_or(name, 1.0)?;
-                    if r.is_finite() && r >= 0.0 {
-                        Ok(r)
-                    } else {
-                        Err(node.error(format!("principledthin `{name}` {r} must be at least 0")))
-                    }
-                };
+                let rate = |name: &str| sampling_rate(node, "principledthin", name);
                 let zero = Vec3::ZERO;
                 Material::DisneyThin(DisneyThin {
                     base_color: self.slot(node, "base_color", Vec3::splat(0.5))?,
