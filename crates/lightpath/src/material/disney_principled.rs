@@ -58,11 +58,8 @@ use super::{scalar, valid_pdf, BsdfSample};
 use crate::math::{INV_PI, PI};
 use crate::sampling::warp;
 use crate::texture::Texture;
-use glam::{Vec2, Vec3};
+use glam::{FloatExt, Vec2, Vec3};
 use std::sync::Arc;
-
-/// Rec. 709 luminance weights (Mitsuba's `luminance` for RGB).
-pub(super) const LUMINANCE: Vec3 = Vec3::new(0.212671, 0.715160, 0.072169);
 
 #[derive(Debug, Clone)]
 pub struct DisneyPrincipled {
@@ -103,17 +100,11 @@ struct Params {
     ggx: Microfacet,
 }
 
-impl Params {
-    fn tint(&self) -> Vec3 {
-        tint(self.base)
-    }
-}
-
 /// A colour over its luminance (white for black): the hue that `spec_tint` and
 /// `sheen_tint` blend towards.
 #[inline]
 pub(super) fn tint(base: Vec3) -> Vec3 {
-    let lum = base.dot(LUMINANCE);
+    let lum = crate::light::luminance(base);
     if lum > 0.0 {
         base / lum
     } else {
@@ -180,9 +171,9 @@ pub(super) fn burley_diffuse(
     let lobe = (1.0 - 0.5 * fi) * (1.0 - 0.5 * fo) + rr * (fo + fi + fo * fi * (rr - 1.0));
     if flatness > 0.0 {
         let fss90 = 0.5 * rr;
-        let fss = lerp(1.0, fss90, fo) * lerp(1.0, fss90, fi);
+        let fss = 1.0.lerp(fss90, fo) * 1.0.lerp(fss90, fi);
         let f_ss = 1.25 * (fss * (1.0 / (cos_i + cos_o) - 0.5) + 0.5);
-        lerp(lobe, f_ss, flatness)
+        lobe.lerp(f_ss, flatness)
     } else {
         lobe
     }
@@ -198,12 +189,6 @@ pub(super) fn sheen(base: Vec3, sheen_tint: f32, cos_d: f32) -> Vec3 {
         Vec3::ONE
     };
     colour * schlick_weight(cos_d.abs())
-}
-
-/// Linear interpolation from `a` (t = 0) to `b` (t = 1).
-#[inline]
-pub(super) fn lerp(a: f32, b: f32, t: f32) -> f32 {
-    a * (1.0 - t) + b * t
 }
 
 /// The GTR1 (Berry) distribution of the clearcoat, D(m) for cos θm = `cos`.
@@ -271,7 +256,7 @@ impl DisneyPrincipled {
 
     /// The clearcoat's GTR1 α.
     fn clearcoat_alpha(p: &Params) -> f32 {
-        lerp(0.1, 0.001, p.clearcoat_gloss)
+        0.1.lerp(0.001, p.clearcoat_gloss)
     }
 
     /// The lobes' probabilities given the dielectric Fresnel `f` of the specular
@@ -334,7 +319,7 @@ impl DisneyPrincipled {
                     let eta_it = if wo_m >= 0.0 { eta } else { 1.0 / eta };
                     let r0 = ((eta_it - 1.0) / (eta_it + 1.0)).powi(2);
                     schlicks +=
-                        (1.0 - p.metallic) * p.spec_tint * schlick(p.tint() * r0, wo_m, eta);
+                        (1.0 - p.metallic) * p.spec_tint * schlick(tint(p.base) * r0, wo_m, eta);
                 }
                 Vec3::splat((1.0 - p.metallic) * (1.0 - p.spec_tint) * f) + schlicks
             } else {

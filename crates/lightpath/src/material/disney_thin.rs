@@ -38,7 +38,7 @@
 
 use super::disney_principled::{burley_diffuse, ggx, schlick, sheen, tint};
 use super::fresnel::fresnel_dielectric_cos;
-use super::microfacet::reflect;
+use super::microfacet::{reflect, Microfacet};
 use super::{scalar, valid_pdf, BsdfSample};
 use crate::math::INV_PI;
 use crate::sampling::warp;
@@ -115,7 +115,7 @@ impl DisneyThin {
     }
 
     /// The specular transmission's distribution: roughness scaled by 0.65η − 0.35.
-    fn transmission_ggx(p: &Params) -> super::microfacet::Microfacet {
+    fn transmission_ggx(p: &Params) -> Microfacet {
         ggx((0.65 * p.eta - 0.35) * p.roughness, p.anisotropic)
     }
 
