@@ -1699,6 +1699,13 @@ impl Builder {
                 self.check_children(node, &["texture"])?;
                 let rate = |name: &str| sampling_rate(node, "principledthin", name);
                 let zero = Vec3::ZERO;
+                let eta = self.slot(node, "eta", Vec3::splat(1.5))?;
+                if let Texture::Constant(c) = &*eta {
+                    if !(c.x.is_finite() && c.x > 0.0) {
+                        let e = format!("principledthin `eta` {} must be positive", c.x);
+                        return Err(node.error(e));
+                    }
+                }
                 Material::DisneyThin(DisneyThin {
                     base_color: self.slot(node, "base_color", Vec3::splat(0.5))?,
                     roughness: self.slot(node, "roughness", Vec3::splat(0.5))?,
@@ -1709,7 +1716,7 @@ impl Builder {
                     sheen_tint: self.slot(node, "sheen_tint", zero)?,
                     flatness: self.slot(node, "flatness", zero)?,
                     diff_trans: self.slot(node, "diff_trans", zero)?,
-                    eta: self.slot(node, "eta", Vec3::splat(1.5))?,
+                    eta,
                     specular_reflectance_sampling_rate: rate("specular_reflectance_sampling_rate")?,
                     specular_transmittance_sampling_rate: rate(
                         "specular_transmittance_sampling_rate",
@@ -2127,6 +2134,12 @@ mod tests {
             t.diffuse_transmittance_sampling_rate,
         ];
         assert_eq!(rates, [2.0, 3.0, 4.0, 5.0]);
+        let bad = xml.replace(r#"name="eta" value="0.19""#, r#"name="eta" value="0""#);
+        let e = load(&bad, &[]).unwrap_err().to_string();
+        assert!(
+            e.contains("`eta` 0 must be positive") && e.contains("m.xml:2"),
+            "{e}"
+        );
     }
 
     /// Camera rays start at `near_clip` and end at `far_clip`: a sphere nearer than the
