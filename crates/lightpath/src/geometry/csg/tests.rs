@@ -486,10 +486,35 @@ impl RefTree {
             }
         }
     }
+
+    /// Whether the ray all but touches a sphere or a cylinder side tangentially: its
+    /// closest approach to the axis or centre is within `1 ± tol` (squared) of the unit
+    /// radius. There the chord it cuts (or just misses) is about `2·sqrt(tol)` long, and
+    /// float32 arithmetic on the transformed ray cannot tell such a chord from a miss:
+    /// rounding of relative size ε in the ray moves the discriminant by about ε, and
+    /// the chord by sqrt(ε), far more than the crossings' own rounding.
+    fn grazes(&self, o: DVec3, d: DVec3, tol: f64) -> bool {
+        match self {
+            RefTree::Leaf(k, m) => {
+                let (o, d) = (m.transform_point3(o), m.transform_vector3(d));
+                let closest = |o: DVec3, d: DVec3| {
+                    let a = d.length_squared();
+                    a > 0.0 && ((o - d * (o.dot(d) / a)).length_squared() - 1.0).abs() < tol
+                };
+                match k {
+                    0 => closest(o, d),
+                    2 => closest(o.truncate().extend(0.0), d.truncate().extend(0.0)),
+                    _ => false,
+                }
+            }
+            RefTree::Op(_, a, b) => a.grazes(o, d, tol) || b.grazes(o, d, tol),
+        }
+    }
 }
 
 /// The reference's first boundary in `(t_min, t_max)`, whether the ray enters there,
-/// and the sorted candidates (for judging near-degenerate rays).
+/// and all the sorted candidates, also those just outside the range that a rounded
+/// computation may place inside it (for judging near-degenerate rays).
 fn reference_hit(
     tree: &RefTree,
     o: DVec3,
@@ -499,33 +524,41 @@ fn reference_hit(
 ) -> (Option<(f64, bool)>, Vec<f64>) {
     let mut all = Vec::new();
     tree.candidates(o, d, &mut all);
-    let mut ts: Vec<f64> = all
-        .into_iter()
-        .filter(|t| t.is_finite() && *t > t_min && *t < t_max)
+    let mut near: Vec<f64> = all.into_iter().filter(|t| t.is_finite()).collect();
+    near.sort_by(f64::total_cmp);
+    let ts: Vec<f64> = near
+        .iter()
+        .copied()
+        .filter(|t| *t > t_min && *t < t_max)
         .collect();
-    ts.sort_by(f64::total_cmp);
     let first_gap_end = ts.first().copied().unwrap_or(t_min + 1.0).min(t_max);
     let mut inside = tree.contains(o + d * (0.5 * (t_min + first_gap_end)));
     for (k, &t) in ts.iter().enumerate() {
         let next = ts.get(k + 1).copied().unwrap_or(t + 1.0).min(t_max);
         let after = tree.contains(o + d * (0.5 * (t + next)));
         if after != inside {
-            return (Some((t, after)), ts);
+            return (Some((t, after)), near);
         }
         inside = after;
     }
-    (None, ts)
+    (None, near)
 }
 
 /// Whether a ray is too close to degenerate for the comparison up to `limit`: two
 /// candidate crossings (or the range ends) nearly coincide there.
 fn ambiguous(ts: &[f64], t_min: f64, t_max: f64, limit: f64) -> bool {
     let mut list: Vec<f64> = vec![t_min];
-    list.extend(ts.iter().copied().filter(|&t| t <= limit + 1e-3));
+    let from = t_min - 2e-4 * (1.0 + t_min.abs());
+    list.extend(
+        ts.iter()
+            .copied()
+            .filter(|&t| t >= from && t <= limit + 1e-3),
+    );
     if t_max.is_finite() {
         list.push(t_max);
-        list.sort_by(f64::total_cmp);
     }
+    // The crossings may lie on both sides of `t_min`.
+    list.sort_by(f64::total_cmp);
     list.windows(2)
         .any(|w| (w[1] - w[0]).abs() < 2e-4 * (1.0 + w[0].abs()))
 }
@@ -588,7 +621,9 @@ fn random_trees_match_the_reference() {
                     _ => false,
                 };
                 if !agree {
-                    if ambiguous(&ts, t_min as f64, t_max as f64, limit.min(1e9)) {
+                    if ambiguous(&ts, t_min as f64, t_max as f64, limit.min(1e9))
+                        || tree.grazes(o64, d64, 1e-5)
+                    {
                         skipped.set(skipped.get() + 1);
                         continue;
                     }
