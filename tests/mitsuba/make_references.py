@@ -16,7 +16,7 @@ import subprocess
 import sys
 
 HERE = pathlib.Path(__file__).resolve().parent
-SCENES = ["box", "materials", "lights", "plastics", "curves", "bspline", "mask", "serialized", "bump", "principled"]
+SCENES = ["box", "materials", "lights", "plastics", "curves", "bspline", "mask", "serialized", "bump", "principled", "scalars"]
 SPP = 16384
 
 
@@ -29,6 +29,9 @@ def textures():
     band = ((x + y) // 4) % 3
     colours = np.array([[220, 60, 40], [240, 220, 200], [40, 90, 200]], dtype=np.uint8)
     Image.fromarray(colours[band]).save(HERE / "stripes.png")
+    # Its red channel as a grey image: what reading a float parameter from the first
+    # channel instead of the luminance would see (the `scalars` scene's catch test).
+    Image.fromarray(colours[band][..., 0]).save(HERE / "stripes_red.png")
 
     # A tangent-space normal map of round bumps, 32x32, raw (linear) values.
     u = (np.arange(32) + 0.5) / 32

@@ -20,7 +20,9 @@
 //! sphere with `to_uv`, a mesh with texture coordinates and a negative scale, and inside
 //! a `twosided` seen from behind), `principled` (every lobe: a plain base, a tinted
 //! anisotropic metal, a clearcoat, a transmissive sphere, sheen with flatness, and a
-//! textured mix) and `principledthin` (a sheet lit from behind), and round
+//! textured mix) and `principledthin` (a sheet lit from behind), float parameters given
+//! colour textures (a bitmap as a roughconductor's and a roughdielectric's `alpha`, a
+//! principled `metallic` and a mask's `opacity`, an `rgb` blend weight), and round
 //! linear curves (`linearcurve`: tapering strands, a wire with sharp joints placed by a
 //! scaling `to_world`) and cubic B-spline curves (`bsplinecurve`: wavy tapering strands
 //! and a thick arch).
@@ -357,5 +359,22 @@ fn the_principled_comparison_catches_missing_transmission() {
         r#"<float name="diff_trans" value="1.2"/>"#,
         r#"<float name="diff_trans" value="0"/>"#,
         "a sheet without diffuse transmission",
+    );
+}
+
+#[test]
+fn float_parameters_from_colour_textures_match_mitsuba() {
+    check("scalars", 2048);
+}
+
+/// The comparison can fail: the colour stripes read by their red channel rather than
+/// their luminance (what a reader taking a texture's first channel sees) are caught.
+#[test]
+fn the_scalar_comparison_catches_the_first_channel() {
+    check_caught(
+        "scalars",
+        "stripes.png",
+        "stripes_red.png",
+        "float parameters from the red channel",
     );
 }

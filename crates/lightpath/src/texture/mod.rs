@@ -23,6 +23,9 @@ pub enum Texture {
     Checkerboard(Checkerboard),
     /// Another texture looked up at `to_uv · uv` (Mitsuba's `to_uv` transform).
     Transformed(TransformedTexture),
+    /// The square root of another texture's value, channel by channel (negative values
+    /// give 0): a Mitsuba microfacet `alpha` texture read as our roughness √α.
+    Sqrt(Arc<Texture>),
 }
 
 /// A texture whose lookups go through an affine map of the texture coordinates.
@@ -51,6 +54,7 @@ impl Texture {
             Texture::Image(t) => t.eval(uv),
             Texture::Checkerboard(t) => t.eval(uv),
             Texture::Transformed(t) => t.texture.eval(t.to_uv.transform_point2(uv)),
+            Texture::Sqrt(t) => sqrt_or_zero(t.eval(uv)),
         }
     }
 
@@ -67,6 +71,16 @@ impl Texture {
                 let g = t.texture.luminance_gradient(t.to_uv.transform_point2(uv));
                 t.to_uv.matrix2.transpose() * g
             }
+            // Of the luminance of √f, approximated as √ of the luminance (exact for
+            // grey textures): ∇√L = ∇L / (2√L).
+            Texture::Sqrt(t) => {
+                let l = crate::light::luminance(t.eval(uv)).max(0.0).sqrt();
+                if l > 0.0 {
+                    t.luminance_gradient(uv) / (2.0 * l)
+                } else {
+                    Vec2::ZERO
+                }
+            }
         }
     }
 
@@ -78,6 +92,14 @@ impl Texture {
             Texture::Checkerboard(t) => (t.color0 + t.color1) * 0.5,
             // Exact for maps that tile the unit square (scales by integers, shifts).
             Texture::Transformed(t) => t.texture.average(),
+            // An upper bound (Jensen's inequality), equal for constants.
+            Texture::Sqrt(t) => sqrt_or_zero(t.average()),
         }
     }
+}
+
+/// The square root of each channel, 0 for negative ones.
+fn sqrt_or_zero(v: Vec3) -> Vec3 {
+    let v = v.max(Vec3::ZERO);
+    Vec3::new(v.x.sqrt(), v.y.sqrt(), v.z.sqrt())
 }
