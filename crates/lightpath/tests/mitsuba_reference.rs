@@ -378,3 +378,49 @@ fn the_scalar_comparison_catches_the_first_channel() {
         "float parameters from the red channel",
     );
 }
+
+/// `hide_emitters` (on `path` and `direct`) blacks out what camera rays see of emitters
+/// and the environment, and keeps their light in reflections. Pixel values as Mitsuba
+/// 3.9.1 renders this scene (box filter): an area light (4) in the centre, the
+/// environment (0.5) at the top, and a mirror sphere reflecting the environment (0.5)
+/// at the top right.
+#[test]
+fn hide_emitters_hides_only_what_the_camera_sees_directly() {
+    let scene = |integrator: &str, hide: bool| {
+        format!(
+            r#"<scene version="3.0.0">
+            <integrator type="{integrator}"><boolean name="hide_emitters" value="{hide}"/></integrator>
+            <sensor type="perspective"><float name="fov" value="60"/>
+                <transform name="to_world"><lookat origin="0, 0, 4" target="0, 0, 0" up="0, 1, 0"/></transform>
+                <film type="hdrfilm"><integer name="width" value="16"/><integer name="height" value="16"/>
+                    <rfilter type="box"/></film>
+            </sensor>
+            <emitter type="constant"><rgb name="radiance" value="0.5"/></emitter>
+            <shape type="rectangle"><transform name="to_world"><scale x="0.5" y="0.5" z="1"/></transform>
+                <emitter type="area"><rgb name="radiance" value="4"/></emitter></shape>
+            <shape type="sphere"><point name="center" x="1.3" y="1.3" z="0"/><float name="radius" value="0.4"/>
+                <bsdf type="conductor"/></shape>
+            </scene>"#
+        )
+    };
+    for integrator in ["path", "direct"] {
+        for hide in [false, true] {
+            let xml = scene(integrator, hide);
+            let loaded =
+                load_scene_str(&xml, Path::new("hide.xml"), &LoadOptions::default()).unwrap();
+            let image = render(&loaded, 16);
+            let at = |x: u32, y: u32| image.get(x, y);
+            let (light, env) = if hide { (0.0, 0.0) } else { (4.0, 0.5) };
+            for (what, value, expected) in [
+                ("light", at(8, 8), light),
+                ("environment", at(8, 0), env),
+                ("mirror", at(12, 3), 0.5),
+            ] {
+                assert!(
+                    (value - glam::Vec3::splat(expected)).abs().max_element() < 1e-4,
+                    "{integrator}, hide_emitters {hide}: {what} {value}, expected {expected}"
+                );
+            }
+        }
+    }
+}

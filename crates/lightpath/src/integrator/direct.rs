@@ -42,6 +42,7 @@ impl Direct {
         max_depth: 2,
         rr_depth: u32::MAX,
         clamp: None,
+        hide_emitters: false,
     };
 
     #[inline]

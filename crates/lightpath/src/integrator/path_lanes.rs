@@ -873,6 +873,7 @@ mod tests {
             max_depth: 8,
             rr_depth: 2,
             clamp: None,
+            hide_emitters: false,
         };
         for point in [false, true] {
             let l = scene(point);
@@ -962,6 +963,7 @@ mod tests {
             max_depth: 5,
             rr_depth: 3,
             clamp: None,
+            hide_emitters: false,
         };
         for point in [false, true] {
             let l = scene(point);

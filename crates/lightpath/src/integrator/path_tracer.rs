@@ -33,6 +33,10 @@ pub struct PathTracer {
     /// Each sample's contribution is clamped to this luminance-free maximum per channel
     /// (biased; off by default).
     pub clamp: Option<f32>,
+    /// Emitters and the environment seen directly by camera rays are black (Mitsuba's
+    /// `hide_emitters`); their light still reaches the scene, and is seen in reflections
+    /// and through refractions.
+    pub hide_emitters: bool,
 }
 
 impl Default for PathTracer {
@@ -41,6 +45,7 @@ impl Default for PathTracer {
             max_depth: 2,
             rr_depth: 4,
             clamp: None,
+            hide_emitters: false,
         }
     }
 }
@@ -186,6 +191,9 @@ impl PathTracer {
     /// environment's light. The path ends.
     #[inline(always)]
     pub(crate) fn miss(&self, scene: &Scene, path: &mut PathState) {
+        if self.hide_emitters && path.prev.is_none() {
+            return;
+        }
         let dir = path.ray.direction.normalize();
         let le = scene.background(dir);
         if le != Vec3::ZERO {
@@ -207,7 +215,7 @@ impl PathTracer {
         // The unit ray direction (the scene sets `wo` to exactly its negation).
         let dir = -si.wo;
         let inst = &scene.instances[si.instance as usize];
-        if inst.emission.is_some() {
+        if inst.emission.is_some() && !(self.hide_emitters && path.prev.is_none()) {
             let le = scene.emitted(si, si.wo);
             if le != Vec3::ZERO {
                 let mis = match &path.prev {

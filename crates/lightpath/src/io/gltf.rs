@@ -936,6 +936,7 @@ impl<'a> Loader<'a> {
                 max_depth: u32::MAX,
                 rr_depth: 5,
                 clamp: None,
+                hide_emitters: false,
             }),
             sampler: Sampler::Independent(IndependentSampler::new(DEFAULT_SPP, 0)),
             test: None,

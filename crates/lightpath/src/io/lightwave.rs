@@ -313,6 +313,7 @@ impl Builder {
                     max_depth,
                     rr_depth,
                     clamp,
+                    hide_emitters: false,
                 })
             }
             _ => {

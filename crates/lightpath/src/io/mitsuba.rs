@@ -38,6 +38,8 @@
 //! - Integrators: `path` `max_depth` counts vertices as Mitsuba does (1: emitters only,
 //!   2: direct lighting, -1: no limit), which is exactly our `PathTracer::max_depth`;
 //!   `rr_depth` (default 5) is passed through. `direct` (its sample counts are ignored).
+//!   Both take `hide_emitters` (emitters and the environment black where camera rays
+//!   see them directly, as in Mitsuba; [`PathTracer::hide_emitters`]).
 //!   `aov` with a single `nn:sh_normal`/`sh_normal`/`geo_normal` (→ normals, shown as
 //!   (n+1)/2), `dd:depth` (→ distance) or `uv`.
 //! - BSDFs: `diffuse`, `conductor` and `roughconductor` are one-sided as in Mitsuba
@@ -651,6 +653,7 @@ impl Builder {
                 max_depth: u32::MAX,
                 rr_depth: 5,
                 clamp: None,
+                hide_emitters: false,
             }),
         };
         let (camera, sampler, filter, clip) =
@@ -722,13 +725,11 @@ impl Builder {
             Some("path") => {
                 let max_depth = depth("max_depth", -1)?;
                 let rr_depth = depth("rr_depth", 5)?;
-                if node.bool_or("hide_emitters", false)? {
-                    return Err(node.error("path `hide_emitters` is not supported"));
-                }
                 Integrator::PathTracer(PathTracer {
                     max_depth,
                     rr_depth,
                     clamp: None,
+                    hide_emitters: node.bool_or("hide_emitters", false)?,
                 })
             }
             Some("direct") => {
@@ -736,9 +737,14 @@ impl Builder {
                 node.int("bsdf_samples")?;
                 node.int("shading_samples")?;
                 if node.bool_or("hide_emitters", false)? {
-                    return Err(node.error("direct `hide_emitters` is not supported"));
+                    // The direct integrator is the path tracer of two vertices.
+                    Integrator::PathTracer(PathTracer {
+                        hide_emitters: true,
+                        ..Direct::PATH_TRACER
+                    })
+                } else {
+                    Integrator::Direct(Direct)
                 }
-                Integrator::Direct(Direct)
             }
             Some("aov") => {
                 let aovs = node

@@ -393,6 +393,7 @@ pub fn load_scene(path: &Path, options: &LoadOptions) -> Result<LoadedScene> {
             max_depth: u32::MAX,
             rr_depth: 5,
             clamp: None,
+            hide_emitters: false,
         }),
         sampler: Sampler::Independent(IndependentSampler::new(SCENE_SPP, 0)),
         test: None,
