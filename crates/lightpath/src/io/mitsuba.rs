@@ -74,6 +74,8 @@
 //!   so the envmap's `to_world` is preceded by that swap. `scale` multiplies it.
 //!   Vertically Mitsuba interpolates rows with their centres from pole to pole (row
 //!   y at v = y/(h−1)); ours at v = (y+½)/h: a shift of under half a row.
+//! - `flip_normals` is read on meshes; on the other shapes `true` is an error (with
+//!   `--lenient` a warning, and the normals keep their side).
 //! - Shapes without a BSDF get Mitsuba's default: diffuse 0.5, or, on a shape with an
 //!   area emitter, a black diffuse (the light reflects nothing).
 //! - Float parameters (`opacity`, `weight`, and the Disney BSDFs' parameters other than
@@ -1112,8 +1114,15 @@ impl Builder {
         if !matches!(
             node.type_name.as_deref(),
             Some("obj" | "ply" | "serialized" | "csg")
-        ) {
-            node.bool_or("flip_normals", false)?;
+        ) && node.bool_or("flip_normals", false)?
+        {
+            // It would turn the surface's inside out (an area light would emit the other
+            // way, one-sided BSDFs face the other way): not silently ignored.
+            let e = node.error("`flip_normals` is supported on meshes (obj, ply, serialized) only");
+            if !self.options.lenient {
+                return Err(e);
+            }
+            log::warn!("{e} (ignored: --lenient)");
         }
         // Curves have their control points placed already (their radii stay as given).
         let placement = if matches!(
@@ -3007,6 +3016,36 @@ mod tests {
             "{e}"
         );
         std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// `flip_normals` on an analytic shape is refused (it is not silently ignored), naming
+    /// the line; `false` is accepted, and meshes take either.
+    #[test]
+    fn flip_normals_on_analytic_shapes_is_refused() {
+        let e = load(
+            &scene_with(
+                r#"<shape type="rectangle">
+            <boolean name="flip_normals" value="true"/></shape>"#,
+            ),
+            &[],
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("m.xml:") && e.contains("flip_normals"), "{e}");
+        load(
+            &scene_with(
+                r#"<shape type="sphere"><boolean name="flip_normals" value="false"/></shape>"#,
+            ),
+            &[],
+        )
+        .unwrap();
+        let options = LoadOptions {
+            lenient: true,
+            ..Default::default()
+        };
+        let xml =
+            scene_with(r#"<shape type="disk"><boolean name="flip_normals" value="true"/></shape>"#);
+        crate::io::load_scene_str(&xml, Path::new("m.xml"), &options).unwrap();
     }
 
     /// A shape without a BSDF gets Mitsuba's default, diffuse 0.5, except an area light,
