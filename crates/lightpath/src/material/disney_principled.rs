@@ -52,9 +52,9 @@
 //! </bsdf>
 //! ```
 
-use super::fresnel::fresnel_dielectric_cos;
+use super::fresnel::{fresnel_dielectric_cos, schlick_weight};
 use super::microfacet::{reflect, refract, Microfacet};
-use super::{scalar, valid_pdf, BsdfSample};
+use super::{scalar, BsdfSample};
 use crate::math::{INV_PI, PI};
 use crate::sampling::warp;
 use crate::texture::Texture;
@@ -130,14 +130,6 @@ struct Choice {
     reflection: f32,
 }
 
-/// Schlick's weight (1 − cos)⁵, cos clamped to [0, 1].
-#[inline]
-pub(super) fn schlick_weight(cos: f32) -> f32 {
-    let m = (1.0 - cos).clamp(0.0, 1.0);
-    let m2 = m * m;
-    m2 * m2 * m
-}
-
 /// Schlick's Fresnel approximation with reflectance `r0` at normal incidence, for the
 /// cosine `cos_i` (negative: from inside) of an interface of relative index `eta`; going
 /// into the less dense medium it uses the refracted cosine (Mitsuba's `calc_schlick`).
@@ -211,20 +203,6 @@ fn sample_gtr1(alpha: f32, u: Vec2) -> Vec3 {
     let cos2 = (1.0 - a2.powf(1.0 - u.y)) / (1.0 - a2);
     let sin = (1.0 - cos2).max(0.0).sqrt();
     Vec3::new(cos_phi * sin, sin_phi * sin, cos2.max(0.0).sqrt())
-}
-
-/// Smith's isotropic GGX masking of the clearcoat for direction `v` and microfacet `m`.
-#[inline]
-fn clearcoat_g1(v: Vec3, m: Vec3, alpha: f32) -> f32 {
-    if v.dot(m) * v.z <= 0.0 {
-        return 0.0;
-    }
-    if v.z == 1.0 {
-        return 1.0;
-    }
-    let c2 = v.z * v.z;
-    let tan2 = (1.0 - c2) / c2;
-    2.0 / (1.0 + (1.0 + alpha * alpha * tan2).sqrt())
 }
 
 impl DisneyPrincipled {
@@ -337,7 +315,9 @@ impl DisneyPrincipled {
         if reflect_ok && front && p.clearcoat > 0.0 {
             let fcc = schlick(Vec3::splat(0.04), wo_m, eta).x;
             let dcc = gtr1(Self::clearcoat_alpha(p), m.z);
-            let gcc = clearcoat_g1(wo, m, 0.25) * clearcoat_g1(wi, m, 0.25);
+            // Separable isotropic GGX masking with α 0.25.
+            let cc = Microfacet::new(0.25, 0.25);
+            let gcc = cc.g1(wo, m) * cc.g1(wi, m);
             value += Vec3::splat(p.clearcoat * 0.25 * fcc * dcc * gcc * cos_i.abs());
         }
         if reflect && front && p.brdf > 0.0 {
@@ -427,14 +407,6 @@ impl DisneyPrincipled {
             reflected(m)?
         };
         let (value, pdf) = self.eval_pdf(&p, wo, wi);
-        if !valid_pdf(pdf) {
-            return None;
-        }
-        Some(BsdfSample {
-            wi,
-            weight: value / pdf,
-            pdf,
-            delta: false,
-        })
+        BsdfSample::from_eval(wi, value, pdf)
     }
 }

@@ -39,7 +39,7 @@
 use super::disney_principled::{burley_diffuse, ggx, schlick, sheen, tint};
 use super::fresnel::fresnel_dielectric_cos;
 use super::microfacet::{reflect, Microfacet};
-use super::{scalar, valid_pdf, BsdfSample};
+use super::{scalar, BsdfSample};
 use crate::math::INV_PI;
 use crate::sampling::warp;
 use crate::texture::Texture;
@@ -221,14 +221,6 @@ impl DisneyThin {
         };
         let wi = wi * side;
         let (value, pdf) = self.eval_pdf(&p, wo, wi);
-        if !valid_pdf(pdf) {
-            return None;
-        }
-        Some(BsdfSample {
-            wi,
-            weight: value / pdf,
-            pdf,
-            delta: false,
-        })
+        BsdfSample::from_eval(wi, value, pdf)
     }
 }

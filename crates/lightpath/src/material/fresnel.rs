@@ -59,9 +59,15 @@ pub fn fresnel_conductor(cos_i: f32, eta: Vec3, k: Vec3) -> Vec3 {
 /// Schlick's approximation F0 + (1 − F0)(1 − cos)⁵.
 #[inline]
 pub fn schlick(f0: f32, cos: f32) -> f32 {
-    let m = (1.0 - cos.abs()).clamp(0.0, 1.0);
+    f0 + (1.0 - f0) * schlick_weight(cos.abs())
+}
+
+/// Schlick's weight (1 − cos)⁵, cos clamped to [0, 1].
+#[inline]
+pub fn schlick_weight(cos: f32) -> f32 {
+    let m = (1.0 - cos).clamp(0.0, 1.0);
     let m2 = m * m;
-    f0 + (1.0 - f0) * m2 * m2 * m
+    m2 * m2 * m
 }
 
 /// The cosine-weighted hemispherical average of the dielectric Fresnel reflectance,

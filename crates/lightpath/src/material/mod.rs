@@ -102,6 +102,20 @@ pub struct BsdfSample {
     pub delta: bool,
 }
 
+impl BsdfSample {
+    /// The non-delta sample of `wi` whose f·|cos θi| is `value` and density `pdf`: weight
+    /// value/pdf, or `None` where the density is not usable ([`valid_pdf`]).
+    #[inline]
+    pub(crate) fn from_eval(wi: Vec3, value: Vec3, pdf: f32) -> Option<BsdfSample> {
+        valid_pdf(pdf).then(|| BsdfSample {
+            wi,
+            weight: value / pdf,
+            pdf,
+            delta: false,
+        })
+    }
+}
+
 /// A material of any kind.
 #[derive(Debug, Clone)]
 pub enum Material {

@@ -25,7 +25,7 @@
 
 use super::fresnel::schlick;
 use super::microfacet::{reflect, reflection, roughness_to_alpha, Microfacet};
-use super::{mirror_to_upper, scalar, valid_pdf, BsdfSample};
+use super::{mirror_to_upper, scalar, BsdfSample};
 use crate::math::INV_PI;
 use crate::sampling::warp;
 use crate::texture::Texture;
@@ -110,19 +110,12 @@ impl Principled {
             return None;
         }
         let (value, pdf) = self.eval_pdf(&lobes, wo, wi);
-        if !valid_pdf(pdf) {
-            return None;
-        }
-        Some(BsdfSample {
-            wi: if flip {
-                Vec3::new(wi.x, wi.y, -wi.z)
-            } else {
-                wi
-            },
-            weight: value / pdf,
-            pdf,
-            delta: false,
-        })
+        let wi = if flip {
+            Vec3::new(wi.x, wi.y, -wi.z)
+        } else {
+            wi
+        };
+        BsdfSample::from_eval(wi, value, pdf)
     }
 }
 

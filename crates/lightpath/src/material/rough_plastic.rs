@@ -45,7 +45,7 @@ use super::fresnel::fresnel_dielectric_cos;
 use super::microfacet::{
     reflect, reflection, refract, roughness_to_alpha, Distribution, Microfacet,
 };
-use super::{valid_pdf, BsdfSample};
+use super::BsdfSample;
 use crate::math::INV_PI;
 use crate::sampling::warp;
 use crate::texture::Texture;
@@ -197,15 +197,7 @@ impl RoughPlastic {
             return None;
         }
         let (value, pdf) = self.eval_pdf(uv, wo, wi);
-        if !valid_pdf(pdf) {
-            return None;
-        }
-        Some(BsdfSample {
-            wi,
-            weight: value / pdf,
-            pdf,
-            delta: false,
-        })
+        BsdfSample::from_eval(wi, value, pdf)
     }
 }
 
