@@ -141,20 +141,32 @@ fn model_cost<const W: usize>(root_area: f64, tree: &Collapsed<W>) -> f64 {
     if tree.nodes.is_empty() {
         return root_area * f64::from(leaf_cost(u64::from(tree.root.1)));
     }
-    let slots = tree.nodes.iter().flatten().filter(|s| s.count != EMPTY);
-    let children: f64 = slots
-        .map(|slot| {
-            let b = crate::math::Bounds3 {
-                min: glam::Vec3::from_array(slot.min),
-                max: glam::Vec3::from_array(slot.max),
-            };
-            let unit = match slot.count {
-                0 => COST_NODE,
-                c => leaf_cost(u64::from(c)),
-            };
-            f64::from(b.surface_area()) * f64::from(unit)
+    let slot_cost = |slot: &Slot| {
+        let b = crate::math::Bounds3 {
+            min: glam::Vec3::from_array(slot.min),
+            max: glam::Vec3::from_array(slot.max),
+        };
+        let unit = match slot.count {
+            0 => COST_NODE,
+            c => leaf_cost(u64::from(c)),
+        };
+        f64::from(b.surface_area()) * f64::from(unit)
+    };
+    // Summed in fixed chunks, in parallel, and the chunks' sums in order: the same
+    // rounding for any number of threads.
+    let sums: Vec<f64> = tree
+        .nodes
+        .par_chunks(1 << 12)
+        .map(|chunk| {
+            chunk
+                .iter()
+                .flatten()
+                .filter(|s| s.count != EMPTY)
+                .map(slot_cost)
+                .sum()
         })
-        .sum();
+        .collect();
+    let children: f64 = sums.iter().sum();
     root_area * f64::from(COST_NODE) + children
 }
 
@@ -421,16 +433,24 @@ struct Piece<const W: usize> {
 
 /// The pieces as one array, copied in parallel, with their indices made absolute.
 fn concatenate<const W: usize>(pieces: Vec<Piece<W>>) -> Vec<[Slot; W]> {
-    let mut out = vec![[UNUSED; W]; pieces.iter().map(|p| p.nodes.len()).sum()];
-    let parts = split_into(&mut out, pieces.iter().map(|p| p.nodes.len()));
+    let total = pieces.iter().map(|p| p.nodes.len()).sum();
+    let mut out = Vec::with_capacity(total);
+    let parts = split_into(
+        &mut out.spare_capacity_mut()[..total],
+        pieces.iter().map(|p| p.nodes.len()),
+    );
     pieces.par_iter().zip(parts).for_each(|(piece, part)| {
         for (dst, src) in part.iter_mut().zip(&piece.nodes) {
-            *dst = *src;
-            for slot in dst.iter_mut().filter(|s| s.count == 0) {
+            let mut node = *src;
+            for slot in node.iter_mut().filter(|s| s.count == 0) {
                 slot.child += piece.shift;
             }
+            dst.write(node);
         }
     });
+    // SAFETY: the parts tile positions 0..total (`split_into` cut them from it in order,
+    // with the pieces' lengths, which sum to it), and each was written in full above.
+    unsafe { out.set_len(total) };
     out
 }
 
@@ -455,7 +475,10 @@ fn fill<const W: usize>(tree: &Tree, nodes: &mut Vec<[Slot; W]>, node: u32, at: 
 }
 
 /// `slice` cut into consecutive parts of the given lengths (which must not exceed it).
-fn split_into<T>(mut slice: &mut [T], lens: impl Iterator<Item = usize>) -> Vec<&mut [T]> {
+pub(super) fn split_into<T>(
+    mut slice: &mut [T],
+    lens: impl Iterator<Item = usize>,
+) -> Vec<&mut [T]> {
     let mut parts = Vec::with_capacity(lens.size_hint().0);
     for len in lens {
         let (part, rest) = std::mem::take(&mut slice).split_at_mut(len);
