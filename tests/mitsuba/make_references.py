@@ -169,6 +169,14 @@ def references(venv):
              "--spp", str(SPP), "-o", str(HERE / f"{scene}_mitsuba.exr")],
             check=True,
         )
+    # One scene, two filters: filters_mitchell_mitsuba.exr, filters_lanczos_mitsuba.exr.
+    for rfilter in ["mitchell", "lanczos"]:
+        subprocess.run(
+            [f"{venv}/bin/python", str(render), str(HERE / "filters.xml"),
+             "--spp", str(SPP), "-D", f"filter={rfilter}",
+             "-o", str(HERE / f"filters_{rfilter}_mitsuba.exr")],
+            check=True,
+        )
 
 
 if __name__ == "__main__":

@@ -205,14 +205,17 @@ impl Schedule {
 }
 
 impl Renderer<'_> {
-    /// The camera ray of the pixel's current sample and its weight (see
-    /// [`Camera::sample_ray`]): its film position drawn from the scene's pixel filter,
+    /// The camera ray of the pixel's current sample, its weight (see
+    /// [`Camera::sample_ray`]) and the pixel filter's weight of the sample (1 but for
+    /// filters with negative lobes; see [`crate::film::Filter::film_sample`], which the
+    /// radiometric and the other integrators' values alike are multiplied by): its film
+    /// position drawn from the scene's pixel filter,
     /// then the lens and lens-path samples where the camera uses them, the ray cut to the
     /// scene's near and far clip distances (along the camera's viewing axis) when it has
     /// them.
     #[inline(always)]
-    fn camera_ray(&self, pixel: UVec2, sampler: &mut Sampler) -> Option<(Ray, Vec3)> {
-        let film = self.scene.filter.film_position(
+    fn camera_ray(&self, pixel: UVec2, sampler: &mut Sampler) -> Option<(Ray, Vec3, f32)> {
+        let (film, filter_weight) = self.scene.filter.film_sample(
             pixel.as_vec2(),
             sampler.next_2d(),
             self.camera.resolution().as_vec2(),
@@ -239,7 +242,7 @@ impl Renderer<'_> {
             ray.t_min = ray.t_min.max(near / cos);
             ray.t_max = ray.t_max.min(far / cos);
         }
-        Some((ray, weight))
+        Some((ray, weight, filter_weight))
     }
 
     /// Renders the image. `progress` is called with the fraction done (0 to 1) from the
@@ -576,9 +579,9 @@ impl Renderer<'_> {
                 sampler.start_pixel_sample(pixel, next[s]);
                 next[s] += 1;
                 match self.camera_ray(pixel, sampler) {
-                    Some((ray, weight)) => {
+                    Some((ray, weight, filter_weight)) => {
                         stats.camera_rays += 1;
-                        live.push((s, k, PathState::new(&ray), weight));
+                        live.push((s, k, PathState::new(&ray), weight * filter_weight));
                         return;
                     }
                     None => add_sample(&mut pixels[k], self.integrator.no_ray_value(), stats),
@@ -703,15 +706,15 @@ impl Renderer<'_> {
                 for index in job.first..job.first + job.count {
                     sampler.start_pixel_sample(pixel, index);
                     let value = match self.camera_ray(pixel, &mut sampler) {
-                        Some((ray, weight)) => {
+                        Some((ray, weight, filter_weight)) => {
                             stats.camera_rays += 1;
                             let li =
                                 self.integrator
                                     .li(self.scene, &ray, &mut sampler, &mut ray_stats);
                             if self.integrator.weighs_camera_rays() {
-                                li * weight
+                                li * (weight * filter_weight)
                             } else {
-                                li
+                                li * filter_weight
                             }
                         }
                         None => self.integrator.no_ray_value(),
@@ -774,7 +777,7 @@ impl Renderer<'_> {
                         let (mut depth, mut hits) = (0.0f64, 0u32);
                         for index in 0..spp {
                             sampler.start_pixel_sample(pixel, index);
-                            let Some((ray, _)) = self.camera_ray(pixel, &mut sampler) else {
+                            let Some((ray, ..)) = self.camera_ray(pixel, &mut sampler) else {
                                 continue;
                             };
                             if let Some(hit) = crate::integrator::first_hit(self.scene, &ray) {
@@ -1051,11 +1054,13 @@ mod tests {
                     let mut sum = Vec3::ZERO;
                     for index in 0..spp {
                         sampler_state.start_pixel_sample(pixel, index);
-                        if let Some((ray, weight)) = r.camera_ray(pixel, &mut sampler_state) {
+                        if let Some((ray, weight, filter_weight)) =
+                            r.camera_ray(pixel, &mut sampler_state)
+                        {
                             let value =
                                 r.integrator
                                     .li(r.scene, &ray, &mut sampler_state, &mut ray_stats)
-                                    * weight;
+                                    * (weight * filter_weight);
                             if value.is_finite() {
                                 sum += value;
                             }
@@ -1129,7 +1134,7 @@ mod tests {
             for i in 0..200u32 {
                 let pixel = UVec2::new(i % 29, i / 29 % 19);
                 sampler.start_pixel_sample(pixel, 0);
-                let (mut ray, _) = r.camera_ray(pixel, &mut sampler).unwrap();
+                let (mut ray, ..) = r.camera_ray(pixel, &mut sampler).unwrap();
                 if i % 3 == 0 {
                     ray.t_max = 5.5;
                 }

@@ -8,8 +8,8 @@
 //!
 //! The scenes cover: `shapegroup` + `instance`, analytic shapes (rectangle, cube, sphere, open cylinder, disk), area,
 //! point, spot, directional and constant emitters, perspective (horizontal and vertical
-//! fov, 4:3 and 9:5 films) and orthographic sensors, Gaussian (Mitsuba's default), tent
-//! and box reconstruction filters, `path` (with `max_depth` and `rr_depth`) and `direct`
+//! fov, 4:3 and 9:5 films) and orthographic sensors, Gaussian (Mitsuba's default), tent,
+//! box, Mitchell–Netravali and Lanczos reconstruction filters, `path` (with `max_depth` and `rr_depth`) and `direct`
 //! integrators, and the BSDFs diffuse, conductor, roughconductor (Beckmann and GGX,
 //! isotropic and anisotropic), plastic, roughplastic (Beckmann and GGX, nonlinear),
 //! one-sided diffuse seen from behind, dielectric, roughdielectric, thindielectric,
@@ -422,5 +422,54 @@ fn hide_emitters_hides_only_what_the_camera_sees_directly() {
                 );
             }
         }
+    }
+}
+
+/// The `filters` scene with its `filter` default set to `filter`.
+fn filters_scene(filter: &str) -> LoadedScene {
+    let path = scene_path("filters");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let from = r#"<default name="filter" value="lanczos"/>"#;
+    assert!(text.contains(from));
+    let text = text.replace(
+        from,
+        &format!(r#"<default name="filter" value="{filter}"/>"#),
+    );
+    load_scene_str(&text, &path, &LoadOptions::default()).unwrap()
+}
+
+/// The reconstruction filters with negative lobes, each against its own reference
+/// (`filters_mitchell`, `filters_lanczos`): weighted samples whose sign follows the lobe,
+/// through the steps in which Mitsuba's film applies its filters. Lanczos's weights vary
+/// the most (its lobes hold the most negative mass), hence its sample count.
+#[test]
+fn negative_lobed_filters_match_mitsuba() {
+    for (filter, spp) in [("mitchell", 1024), ("lanczos", 4096)] {
+        let name = format!("filters_{filter}");
+        let (rel_mse, ratio) = compare(&render(&filters_scene(filter), spp), &name);
+        eprintln!("{name}: relMSE {rel_mse:.3e}, mean ratio {ratio:.4}");
+        assert!(
+            rel_mse < MAX_REL_MSE,
+            "{name}: relMSE {rel_mse:.3e} against Mitsuba (limit {MAX_REL_MSE:e})"
+        );
+        assert!(
+            (ratio - 1.0).abs() < MAX_MEAN_DEVIATION,
+            "{name}: mean brightness {ratio:.4}"
+        );
+    }
+}
+
+/// The filter comparison can fail: Mitsuba's default Gaussian in place of either filter
+/// is caught against both references.
+#[test]
+fn the_filter_comparison_catches_a_gaussian() {
+    let image = render(&filters_scene("gaussian"), 1024);
+    for filter in ["mitchell", "lanczos"] {
+        let (rel_mse, _) = compare(&image, &format!("filters_{filter}"));
+        eprintln!("gaussian against {filter}: relMSE {rel_mse:.3e}");
+        assert!(
+            rel_mse >= MAX_REL_MSE,
+            "a Gaussian passed for {filter}: {rel_mse:.3e}"
+        );
     }
 }

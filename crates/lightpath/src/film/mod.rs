@@ -4,7 +4,7 @@ mod filter;
 mod image;
 mod tonemap;
 
-pub use filter::Filter;
+pub use filter::{Filter, MITSUBA_FILTER_STEPS};
 pub use image::Image;
 pub use tonemap::{exposure_scale, Tonemap};
 

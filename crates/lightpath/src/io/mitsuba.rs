@@ -31,8 +31,10 @@
 //!   `near_clip` and end at `far_clip` (defaults 0.01 and 10⁴), measured along the
 //!   viewing axis as Mitsuba measures them.
 //! - Films: `hdrfilm` `width`/`height` (defaults 768×576). `rfilter` `box`, `tent`
-//!   (`radius`) and `gaussian` (`stddev`; the default filter, as in Mitsuba) are applied
-//!   by filter importance sampling ([`Filter`]); other filters are errors.
+//!   (`radius`), `gaussian` (`stddev`; the default filter, as in Mitsuba), `mitchell`
+//!   (`B`, `C`), `catmullrom` and `lanczos` (`lobes`) are applied by filter importance
+//!   sampling ([`Filter`]; the last three, with negative lobes, by weighted samples, and
+//!   in the steps through which Mitsuba applies them, [`Filter::with_steps`]).
 //! - Samplers: `independent` → independent; `stratified`, `multijitter`, `ldsampler`,
 //!   `orthogonal` → our `sobol`; `sample_count` (default 4), `seed`.
 //! - Integrators: `path` `max_depth` counts vertices as Mitsuba does (1: emitters only,
@@ -91,7 +93,7 @@ use super::xml::resolve_path;
 use super::{LoadOptions, LoadedScene};
 use crate::camera::{Camera, FovAxis, Orthographic, Perspective, ThinLens};
 use crate::error::{Error, Location, Result};
-use crate::film::Filter;
+use crate::film::{Filter, MITSUBA_FILTER_STEPS};
 use crate::geometry::{
     AlphaMask, AlphaTest, Csg, CsgNode, CsgOp, CubicBasis, CubicCurves, Cuboid, Cylinder, Disk,
     LinearCurves, MeshData, Rectangle, Shape, Solid, Sphere, TriangleMesh,
@@ -444,7 +446,14 @@ const IORS: &[(&str, f32)] = &[
 const INTEGRATORS: &[&str] = &["path", "direct", "aov"];
 const SENSORS: &[&str] = &["perspective", "thinlens", "orthographic", "realistic"];
 const FILMS: &[&str] = &["hdrfilm"];
-const RFILTERS: &[&str] = &["box", "tent", "gaussian"];
+const RFILTERS: &[&str] = &[
+    "box",
+    "tent",
+    "gaussian",
+    "mitchell",
+    "catmullrom",
+    "lanczos",
+];
 const SAMPLERS: &[&str] = &[
     "independent",
     "stratified",
@@ -936,6 +945,24 @@ impl Builder {
                     radius: positive("radius", 1.0)?,
                 },
                 Some("gaussian") => Filter::gaussian(positive("stddev", 0.5)?),
+                Some("mitchell") => {
+                    let b = f.float("B")?.unwrap_or(1.0 / 3.0);
+                    let c = f.float("C")?.unwrap_or(1.0 / 3.0);
+                    if !(b.is_finite() && c.is_finite()) {
+                        return Err(
+                            f.error(format!("mitchell B and C must be finite, not {b} and {c}"))
+                        );
+                    }
+                    Filter::mitchell(b, c).with_steps(MITSUBA_FILTER_STEPS)
+                }
+                Some("catmullrom") => Filter::catmull_rom().with_steps(MITSUBA_FILTER_STEPS),
+                Some("lanczos") => {
+                    let lobes = f.int("lobes")?.unwrap_or(3);
+                    if !(1..=16).contains(&lobes) {
+                        return Err(f.error(format!("lanczos lobes must be 1 to 16, not {lobes}")));
+                    }
+                    Filter::lanczos(lobes as u32).with_steps(MITSUBA_FILTER_STEPS)
+                }
                 _ => return Err(unknown_type(&f, RFILTERS)),
             };
             self.check_used(&f)?;
@@ -2679,6 +2706,53 @@ mod tests {
         assert_eq!(
             b.scene.camera.as_ref().unwrap().resolution(),
             UVec2::new(8, 8)
+        );
+    }
+
+    /// The filters with negative lobes are read with Mitsuba's parameters and steps; a
+    /// bad `lobes` count is an error naming its line.
+    #[test]
+    fn negative_lobed_filters() {
+        let scene = |rfilter: &str| {
+            format!(
+                r#"<scene version="3.0.0"><sensor type="perspective">
+                <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/>
+                {rfilter}</film></sensor></scene>"#
+            )
+        };
+        let filter = |rfilter: &str| load(&scene(rfilter), &[]).unwrap().scene.filter;
+        let stepped = |f: Filter| f.with_steps(MITSUBA_FILTER_STEPS);
+        assert_eq!(
+            filter(r#"<rfilter type="mitchell"/>"#),
+            stepped(Filter::mitchell(1.0 / 3.0, 1.0 / 3.0))
+        );
+        assert_eq!(
+            filter(
+                r#"<rfilter type="mitchell"><float name="B" value="0.2"/><float name="C" value="0.4"/></rfilter>"#
+            ),
+            stepped(Filter::mitchell(0.2, 0.4))
+        );
+        assert_eq!(
+            filter(r#"<rfilter type="catmullrom"/>"#),
+            stepped(Filter::catmull_rom())
+        );
+        assert_eq!(
+            filter(r#"<rfilter type="lanczos"/>"#),
+            stepped(Filter::lanczos(3))
+        );
+        assert_eq!(
+            filter(r#"<rfilter type="lanczos"><integer name="lobes" value="2"/></rfilter>"#),
+            stepped(Filter::lanczos(2))
+        );
+        let err = load(
+            &scene(r#"<rfilter type="lanczos"><integer name="lobes" value="0"/></rfilter>"#),
+            &[],
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("lobes must be 1 to 16, not 0") && err.contains(":3"),
+            "{err}"
         );
     }
 
