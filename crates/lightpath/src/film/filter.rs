@@ -7,11 +7,12 @@
 //! (pbrt-v4's filter importance sampling). Mitsuba splats each sample into every pixel
 //! in the filter's reach instead; both converge to the same image.
 //!
-//! Filters with negative lobes (Mitchell–Netravali, Catmull–Rom, Lanczos) are sampled
-//! from a table of `|f|` instead, and each sample carries the weight
+//! Filters with negative lobes (Mitchell–Netravali, Catmull–Rom, Lanczos), and filters
+//! made of constant steps as Mitsuba's film applies them ([`Filter::with_steps`]), are
+//! sampled from a table of `|f|` instead, and each sample carries the weight
 //! `f(x) / (p(x) ∫f)` ([`Filter::film_sample`]), whose sign follows the lobe it landed
 //! in: the weighted average is still an unbiased estimate of `∫ f L / ∫ f`. The
-//! non-negative filters' samples all weigh 1.
+//! samples of filters that are never negative all weigh 1.
 //!
 //! In a Mitsuba 3 scene:
 //! ```xml
@@ -45,17 +46,14 @@ pub enum Filter {
     /// The Mitchell–Netravali cubic with parameters `b` and `c`, radius 2 (Mitsuba's
     /// `mitchell`, B = C = 1/3; its `catmullrom` is B = 0, C = ½). Build it with
     /// [`Filter::mitchell`].
-    Mitchell {
-        b: f32,
-        c: f32,
-        /// 0, or the number of constant steps per radius (see [`Filter::with_steps`]).
-        steps: u32,
-        table: Arc<Profile>,
-    },
+    Mitchell { b: f32, c: f32, table: Arc<Profile> },
     /// `sinc(x)·sinc(x/lobes)` for `|x| < lobes` (Mitsuba's `lanczos`, 3 lobes). Build it
     /// with [`Filter::lanczos`].
-    Lanczos {
-        lobes: u32,
+    Lanczos { lobes: u32, table: Arc<Profile> },
+    /// `filter` made constant over `steps` steps per radius on either side (see
+    /// [`Filter::with_steps`]).
+    Stepped {
+        filter: Arc<Filter>,
         steps: u32,
         table: Arc<Profile>,
     },
@@ -85,7 +83,6 @@ impl Filter {
         Filter::Mitchell {
             b,
             c,
-            steps: 0,
             table: Arc::new(Profile::new(2.0, 0, |x| mitchell(b as f64, c as f64, x))),
         }
     }
@@ -100,54 +97,48 @@ impl Filter {
         let lobes = lobes.max(1);
         Filter::Lanczos {
             lobes,
-            steps: 0,
             table: Arc::new(Profile::new(lobes as f64, 0, |x| lanczos(lobes as f64, x))),
         }
     }
 
-    /// A Mitchell–Netravali or Lanczos filter made constant over `steps` steps per radius
-    /// on either side, each taking the value at its end nearer the centre: how Mitsuba 3
-    /// applies them ([`MITSUBA_FILTER_STEPS`]), which differs visibly from the exact
-    /// filter (Lanczos at 0.75 pixels: 0.366 against 0.270). Other filters, and `steps`
-    /// 0, are returned unchanged.
+    /// The filter made constant over `steps` steps per radius on either side, each
+    /// taking the value at its end nearer the centre: how Mitsuba 3 applies its filters
+    /// ([`MITSUBA_FILTER_STEPS`]), which differs visibly from the exact filter (Lanczos
+    /// at 0.75 pixels: 0.366 against 0.270; a Gaussian is widened by about half a step).
+    /// Sampled from a table whose bins do not straddle the steps. The box, already
+    /// constant, a stepped filter, and `steps` 0 are returned unchanged.
     pub fn with_steps(self, steps: u32) -> Filter {
-        if steps == 0 {
+        if steps == 0 || matches!(self, Filter::Box | Filter::Stepped { .. }) {
             return self;
         }
         let r = self.radius() as f64;
-        match self {
-            Filter::Mitchell { b, c, .. } => Filter::Mitchell {
-                b,
-                c,
-                steps,
-                table: Arc::new(Profile::new(2.0, steps, |x| {
-                    mitchell(b as f64, c as f64, quantise(x, r, steps))
-                })),
-            },
-            Filter::Lanczos { lobes, .. } => Filter::Lanczos {
-                lobes,
-                steps,
-                table: Arc::new(Profile::new(r, steps, |x| {
-                    lanczos(lobes as f64, quantise(x, r, steps))
-                })),
-            },
-            other => other,
+        let table = Arc::new(Profile::new(r, steps, |x| {
+            self.profile(quantise(x, r, steps))
+        }));
+        Filter::Stepped {
+            filter: Arc::new(self),
+            steps,
+            table,
         }
     }
 
     /// How far from the pixel centre the filter reaches, in pixels.
     pub fn radius(&self) -> f32 {
-        match *self {
+        match self {
             Filter::Box => 0.5,
-            Filter::Tent { radius } | Filter::Gaussian { radius, .. } => radius,
+            Filter::Tent { radius } | Filter::Gaussian { radius, .. } => *radius,
             Filter::Mitchell { .. } => 2.0,
-            Filter::Lanczos { lobes, .. } => lobes as f32,
+            Filter::Lanczos { lobes, .. } => *lobes as f32,
+            Filter::Stepped { filter, .. } => filter.radius(),
         }
     }
 
     /// The profile `f₁` at an offset, in double precision.
     fn profile(&self, x: f64) -> f64 {
         match *self {
+            Filter::Stepped {
+                ref filter, steps, ..
+            } => filter.profile(quantise(x, filter.radius() as f64, steps)),
             Filter::Box => f64::from(u8::from(x.abs() <= 0.5)),
             Filter::Tent { radius } => (1.0 - x.abs() / radius as f64).max(0.0),
             Filter::Gaussian { stddev, radius, .. } => {
@@ -157,12 +148,8 @@ impl Filter {
                     (-x * x / (2.0 * (stddev as f64).powi(2))).exp()
                 }
             }
-            Filter::Mitchell { b, c, steps, .. } => {
-                mitchell(b as f64, c as f64, quantise(x, 2.0, steps))
-            }
-            Filter::Lanczos { lobes, steps, .. } => {
-                lanczos(lobes as f64, quantise(x, lobes as f64, steps))
-            }
+            Filter::Mitchell { b, c, .. } => mitchell(b as f64, c as f64, x),
+            Filter::Lanczos { lobes, .. } => lanczos(lobes as f64, x),
         }
     }
 
@@ -199,8 +186,14 @@ impl Filter {
     fn sample_1d(&self, u: f32, lo: f32, hi: f32) -> (f32, f32) {
         let (u, lo, hi) = (u as f64, lo as f64, hi as f64);
         let x = match self {
-            Filter::Mitchell { table, .. } | Filter::Lanczos { table, .. } => {
+            Filter::Mitchell { table, .. }
+            | Filter::Lanczos { table, .. }
+            | Filter::Stepped { table, .. } => {
                 let (x, pdf) = table.sample(u, lo, hi);
+                if table.never_negative {
+                    // Drawn with density exactly ∝ f (constant steps in whole bins).
+                    return (x as f32, 1.0);
+                }
                 let integral = table.integral(lo, hi, |x| self.profile(x));
                 let weight = self.profile(x) / (pdf * integral);
                 return (
@@ -250,7 +243,7 @@ impl Filter {
                 let b = if hi == r { edge } else { erf(hi / s) };
                 s * erf_inv(a + u * (b - a))
             }
-            Filter::Mitchell { .. } | Filter::Lanczos { .. } => {
+            Filter::Mitchell { .. } | Filter::Lanczos { .. } | Filter::Stepped { .. } => {
                 unreachable!("sampled from their tables")
             }
         };
@@ -323,6 +316,10 @@ pub struct Profile {
     cdf: Vec<f64>,
     /// `∫ f` from `-radius` to each bin's left edge, and to `radius` at the end.
     integral: Vec<f64>,
+    /// A stepped filter that is positive throughout its support (a stepped Gaussian or
+    /// tent): its bins' masses are exactly its steps' (no floor, and none is zero), so a
+    /// sample's density is ∝ f and its weight 1.
+    never_negative: bool,
 }
 
 impl std::fmt::Debug for Profile {
@@ -344,7 +341,13 @@ impl Profile {
             (2.0 * radius * Self::BINS_PER_PIXEL as f64).ceil() as usize
         };
         let step = 2.0 * radius / bins as f64;
-        let floor = 1e-6 * f(0.0).abs() * step;
+        let never_negative =
+            steps > 0 && (0..bins * 16).all(|k| f(-radius + (k as f64 + 0.5) * step / 16.0) > 0.0);
+        let floor = if never_negative {
+            0.0
+        } else {
+            1e-6 * f(0.0).abs() * step
+        };
         let (mut mass, mut cdf, mut integral) = (Vec::new(), vec![0.0], vec![0.0]);
         for j in 0..bins {
             let a = -radius + j as f64 * step;
@@ -359,6 +362,7 @@ impl Profile {
             mass,
             cdf,
             integral,
+            never_negative,
         }
     }
 
@@ -593,6 +597,8 @@ mod tests {
             Filter::catmull_rom(),
             Filter::lanczos(3),
             Filter::lanczos(3).with_steps(MITSUBA_FILTER_STEPS),
+            Filter::gaussian(0.5).with_steps(MITSUBA_FILTER_STEPS),
+            Filter::Tent { radius: 1.0 }.with_steps(MITSUBA_FILTER_STEPS),
         ] {
             let r = filter.radius() as f64;
             for (lo, hi) in [(-r, r), (-0.5, r), (-r, 1.2)] {

@@ -33,8 +33,10 @@
 //! - Films: `hdrfilm` `width`/`height` (defaults 768×576). `rfilter` `box`, `tent`
 //!   (`radius`), `gaussian` (`stddev`; the default filter, as in Mitsuba), `mitchell`
 //!   (`B`, `C`), `catmullrom` and `lanczos` (`lobes`) are applied by filter importance
-//!   sampling ([`Filter`]; the last three, with negative lobes, by weighted samples, and
-//!   in the steps through which Mitsuba applies them, [`Filter::with_steps`]).
+//!   sampling ([`Filter`]; the last three, with negative lobes, by weighted samples).
+//!   All but the box go through the 31 constant steps per radius in which Mitsuba's film
+//!   applies them ([`Filter::with_steps`]): on `tests/mitsuba/filters.xml` with the
+//!   Gaussian, relMSE against Mitsuba 4.5e-5 with the steps and 1.3e-4 without.
 //! - Samplers: `independent` → independent; `stratified`, `multijitter`, `ldsampler`,
 //!   `orthogonal` → our `sobol`; `sample_count` (default 4), `seed`.
 //! - Integrators: `path` `max_depth` counts vertices as Mitsuba does (1: emitters only,
@@ -826,7 +828,10 @@ impl Builder {
         let film = self.single(node, "film")?;
         let (resolution, filter) = match &film {
             Some(f) => self.film(f)?,
-            None => (UVec2::new(768, 576), Filter::gaussian(0.5)),
+            None => (
+                UVec2::new(768, 576),
+                Filter::gaussian(0.5).with_steps(MITSUBA_FILTER_STEPS),
+            ),
         };
         let sampler = match self.single(node, "sampler")? {
             Some(s) => self.sampler(&s)?,
@@ -953,20 +958,22 @@ impl Builder {
                             f.error(format!("mitchell B and C must be finite, not {b} and {c}"))
                         );
                     }
-                    Filter::mitchell(b, c).with_steps(MITSUBA_FILTER_STEPS)
+                    Filter::mitchell(b, c)
                 }
-                Some("catmullrom") => Filter::catmull_rom().with_steps(MITSUBA_FILTER_STEPS),
+                Some("catmullrom") => Filter::catmull_rom(),
                 Some("lanczos") => {
                     let lobes = f.int("lobes")?.unwrap_or(3);
                     if !(1..=16).contains(&lobes) {
                         return Err(f.error(format!("lanczos lobes must be 1 to 16, not {lobes}")));
                     }
-                    Filter::lanczos(lobes as u32).with_steps(MITSUBA_FILTER_STEPS)
+                    Filter::lanczos(lobes as u32)
                 }
                 _ => return Err(unknown_type(&f, RFILTERS)),
             };
             self.check_used(&f)?;
         }
+        // Through the steps in which Mitsuba's film applies every filter.
+        let filter = filter.with_steps(MITSUBA_FILTER_STEPS);
         let w = node.int("width")?.unwrap_or(768);
         let h = node.int("height")?.unwrap_or(576);
         for (name, v) in [("width", w), ("height", h)] {
@@ -2709,10 +2716,10 @@ mod tests {
         );
     }
 
-    /// The filters with negative lobes are read with Mitsuba's parameters and steps; a
-    /// bad `lobes` count is an error naming its line.
+    /// The filters are read with Mitsuba's parameters and in its steps (the box needs
+    /// none); a bad `lobes` count is an error naming its line.
     #[test]
-    fn negative_lobed_filters() {
+    fn filters_are_read_in_mitsubas_steps() {
         let scene = |rfilter: &str| {
             format!(
                 r#"<scene version="3.0.0"><sensor type="perspective">
@@ -2722,6 +2729,12 @@ mod tests {
         };
         let filter = |rfilter: &str| load(&scene(rfilter), &[]).unwrap().scene.filter;
         let stepped = |f: Filter| f.with_steps(MITSUBA_FILTER_STEPS);
+        assert_eq!(filter(r#"<rfilter type="box"/>"#), Filter::Box);
+        assert_eq!(filter(""), stepped(Filter::gaussian(0.5)));
+        assert_eq!(
+            filter(r#"<rfilter type="tent"><float name="radius" value="1.5"/></rfilter>"#),
+            stepped(Filter::Tent { radius: 1.5 })
+        );
         assert_eq!(
             filter(r#"<rfilter type="mitchell"/>"#),
             stepped(Filter::mitchell(1.0 / 3.0, 1.0 / 3.0))
