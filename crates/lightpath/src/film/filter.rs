@@ -185,29 +185,26 @@ impl Filter {
     /// with negative lobes ∝ a table of |f₁|, and its weight.
     fn sample_1d(&self, u: f32, lo: f32, hi: f32) -> (f32, f32) {
         let (u, lo, hi) = (u as f64, lo as f64, hi as f64);
-        let x = match self {
+        let table = match self {
             Filter::Mitchell { table, .. }
             | Filter::Lanczos { table, .. }
-            | Filter::Stepped { table, .. } => {
-                let (x, pdf) = table.sample(u, lo, hi);
-                if table.never_negative {
-                    // Drawn with density exactly ∝ f (constant steps in whole bins).
-                    return (x as f32, 1.0);
-                }
-                let integral = table.integral(lo, hi, |x| self.profile(x));
-                let weight = self.profile(x) / (pdf * integral);
-                return (
-                    x as f32,
-                    if weight.is_finite() {
-                        weight as f32
-                    } else {
-                        0.0
-                    },
-                );
-            }
-            _ => self.sample_positive(u, lo, hi),
+            | Filter::Stepped { table, .. } => table,
+            _ => return (self.sample_positive(u, lo, hi), 1.0),
         };
-        (x, 1.0)
+        let (x, pdf) = table.sample(u, lo, hi);
+        if table.never_negative {
+            // Drawn with density exactly ∝ f (constant steps in whole bins).
+            return (x as f32, 1.0);
+        }
+        let weight = self.profile(x) / (pdf * table.integral(lo, hi, |x| self.profile(x)));
+        (
+            x as f32,
+            if weight.is_finite() {
+                weight as f32
+            } else {
+                0.0
+            },
+        )
     }
 
     /// [`Filter::sample_1d`] for the filters that are never negative.
@@ -256,11 +253,8 @@ impl Filter {
     }
 }
 
-/// `|x|` moved to the inner end of its step, for `steps` steps per `radius` (0: `x`).
+/// `|x|` moved to the inner end of its step, for `steps` (at least 1) steps per `radius`.
 fn quantise(x: f64, radius: f64, steps: u32) -> f64 {
-    if steps == 0 {
-        return x;
-    }
     let s = steps as f64;
     (x.abs() * s / radius).floor() * radius / s
 }
@@ -300,7 +294,8 @@ fn lanczos(lobes: f64, x: f64) -> f64 {
     }
 }
 
-/// A tabulated profile for filters with negative lobes: over `[-radius, radius]` in
+/// A tabulated profile for the filters with negative lobes and the stepped filters
+/// (those not sampled in closed form): over `[-radius, radius]` in
 /// bins of [`Profile::BINS_PER_PIXEL`] per pixel (or, for a filter of constant steps,
 /// four bins a step, so that no bin straddles a step), the mass of `|f|` in each bin (so a
 /// sample is drawn piecewise uniformly, with a bin's mass over its width as density),
@@ -309,8 +304,9 @@ fn lanczos(lobes: f64, x: f64) -> f64 {
 pub struct Profile {
     radius: f64,
     step: f64,
-    /// Each bin's mass of `|f|` (never zero: a floor keeps every offset in the support
-    /// reachable, so the weights stay unbiased).
+    /// Each bin's mass of `|f|`, never zero: a floor keeps every offset in the support
+    /// reachable, so the weights stay unbiased (no floor where `f` is positive
+    /// throughout, see `never_negative`).
     mass: Vec<f64>,
     /// The running sum of `mass` at each bin's left edge, and the total at the end.
     cdf: Vec<f64>,
