@@ -484,6 +484,23 @@ impl Bvh8 {
         let _ = child;
     }
 
+    /// Starts loading the cache line of `node`'s child references (its fourth) at the
+    /// start of its test, so that a miss on it overlaps with the misses on the box
+    /// planes. Without it, the line is requested only once the test has chosen a child,
+    /// a second wait for memory, in series, at every node that was not prefetched when
+    /// pushed (the nearest hit child, visited next without the stack, never is).
+    #[inline(always)]
+    fn prefetch_refs(node: &Bvh8Node) {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: prefetching is a hint and never faults, whatever the address.
+        unsafe {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            _mm_prefetch::<_MM_HINT_T0>(node.child.as_ptr() as *const i8);
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = node;
+    }
+
     /// The closest-hit descent from a node whose children in `mask` (at least one) the
     /// ray enters at distances `near`: returns the nearest child and pushes the others
     /// sorted by decreasing distance, so that the next nearest is on top. Ties go to the
@@ -738,6 +755,7 @@ impl Bvh8 {
                 any |= leaf(cur.child, cur.count, &mut t_max);
             } else {
                 let node = &self.nodes[cur.child as usize];
+                Self::prefetch_refs(node);
                 let (mask, near) = T::test::<AXIS_PARALLEL>(node, &lanes, ray.t_min, t_max);
                 if mask != 0 {
                     cur = self.descend(node, mask, &near, &mut stack, &mut sp, &prefetch_leaf);
@@ -792,6 +810,7 @@ impl Bvh8 {
                 }
             } else {
                 let node = &self.nodes[child as usize];
+                Self::prefetch_refs(node);
                 let (mask, _) = T::test::<AXIS_PARALLEL>(node, &lanes, ray.t_min, ray.t_max);
                 if mask != 0 {
                     // The lowest slot next, the others on the stack, the next lowest on top.
