@@ -132,6 +132,20 @@ pub struct AlphaMask {
     pub test: AlphaTest,
 }
 
+impl AlphaMask {
+    /// The fraction of rays that meet the surface at texture coordinates `uv`: 1 or 0
+    /// for a cutoff, α clamped to [0, 1] for stochastic transparency (0 where α is NaN,
+    /// which no ray meets either).
+    pub fn coverage_at(&self, uv: Vec2) -> f32 {
+        let alpha = self.coverage.eval(uv).x;
+        match self.test {
+            AlphaTest::Cutoff(cutoff) => f32::from(u8::from(alpha >= cutoff)),
+            AlphaTest::Stochastic if alpha > 0.0 => alpha.min(1.0),
+            AlphaTest::Stochastic => 0.0,
+        }
+    }
+}
+
 /// How an [`AlphaMask`]'s coverage decides whether a ray meets the surface.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum AlphaTest {

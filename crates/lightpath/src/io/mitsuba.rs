@@ -68,7 +68,10 @@
 //!   `mask` (the shape's outermost BSDF, on meshes and rectangles) makes the surface
 //!   transparent with probability 1 − `opacity` (one value, see below; default 0.5) at
 //!   each point: rays pass through it there ([`crate::geometry::AlphaTest::Stochastic`]),
-//!   shadow rays included; the nested BSDF scatters the rest. (Mitsuba 3.9.1 reads a
+//!   shadow rays included; the nested BSDF scatters the rest. A masked shape's `area`
+//!   emitter emits only where the surface is there, in proportion to `opacity` (see
+//!   [`crate::light::AreaLight`]); Mitsuba adds the emission at every hit of the shape
+//!   and samples its whole area. (Mitsuba 3.9.1 reads a
 //!   `checkerboard` opacity with its two colours swapped, its single-channel lookup
 //!   disagreeing with its colour one: there it renders the complement of the pattern
 //!   that the same checkerboard shows as a colour; constant and bitmap opacities agree.)
