@@ -16,7 +16,7 @@ import subprocess
 import sys
 
 HERE = pathlib.Path(__file__).resolve().parent
-SCENES = ["box", "materials", "lights", "plastics", "curves", "bspline", "mask", "serialized", "bump", "principled", "scalars"]
+SCENES = ["box", "materials", "lights", "plastics", "curves", "bspline", "mask", "serialized", "bump", "principled", "scalars", "flip"]
 SPP = 16384
 
 

@@ -25,7 +25,8 @@
 //! principled `metallic` and a mask's `opacity`, an `rgb` blend weight), and round
 //! linear curves (`linearcurve`: tapering strands, a wire with sharp joints placed by a
 //! scaling `to_world`) and cubic B-spline curves (`bsplinecurve`: wavy tapering strands
-//! and a thick arch).
+//! and a thick arch), and `flip_normals` on analytic shapes (a rectangle area light, a
+//! dielectric sphere that becomes a bubble, an open cylinder with a one-sided diffuse).
 
 use lightpath::film::{Image, ImageErrors};
 use lightpath::io::{load_scene, load_scene_str, LoadOptions, LoadedScene};
@@ -152,6 +153,31 @@ fn check_caught(name: &str, from: &str, to: &str, what: &str) {
         rel_mse >= MAX_REL_MSE || (ratio - 1.0).abs() >= MAX_MEAN_DEVIATION,
         "{what} passed: relMSE {rel_mse:.3e}, mean ratio {ratio:.4}"
     );
+}
+
+#[test]
+fn flipped_normals_match_mitsuba() {
+    check("flip", 4096);
+}
+
+/// The flip comparison can fail: the light left unflipped (facing away), the sphere
+/// (glass rather than a bubble) and the cylinder (lit outside, black inside) are caught.
+#[test]
+fn the_flip_comparison_catches_unflipped_shapes() {
+    for (shape, what) in [
+        ("rectangle", "an unflipped light"),
+        ("sphere", "an unflipped sphere"),
+        ("cylinder", "an unflipped cylinder"),
+    ] {
+        check_caught(
+            "flip",
+            &format!(
+                "<shape type=\"{shape}\">\n        <boolean name=\"flip_normals\" value=\"true\"/>"
+            ),
+            &format!("<shape type=\"{shape}\">"),
+            what,
+        );
+    }
 }
 
 #[test]

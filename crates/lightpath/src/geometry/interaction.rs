@@ -53,6 +53,13 @@ impl SurfaceInteraction {
         }
     }
 
+    /// Turns the surface's normals the other way (geometric and shading together).
+    #[inline]
+    pub fn flip_normals(&mut self) {
+        self.n = -self.n;
+        self.shading_n = -self.shading_n;
+    }
+
     /// The origin for a ray leaving the surface towards `w`, offset by the error bound.
     #[inline]
     pub fn offset_origin(&self, w: Vec3) -> Vec3 {

@@ -81,8 +81,9 @@
 //!   so the envmap's `to_world` is preceded by that swap. `scale` multiplies it.
 //!   Vertically Mitsuba interpolates rows with their centres from pole to pole (row
 //!   y at v = y/(h−1)); ours at v = (y+½)/h: a shift of under half a row.
-//! - `flip_normals` is read on meshes; on the other shapes `true` is an error (with
-//!   `--lenient` a warning, and the normals keep their side).
+//! - `flip_normals` turns every shape's normals: a mesh's triangles as it loads, an
+//!   analytic shape's through its instance ([`crate::scene::Instance::flip_normals`]),
+//!   so one-sided BSDFs and area emission face the other side, as in Mitsuba.
 //! - Shapes without a BSDF get Mitsuba's default: diffuse 0.5, or, on a shape with an
 //!   area emitter, a black diffuse (the light reflects nothing).
 //! - Float parameters (`opacity`, `weight`, and the Disney BSDFs' parameters other than
@@ -1148,19 +1149,12 @@ impl Builder {
             ),
             _ => return Err(unknown_type(node, SHAPES)),
         };
-        if !matches!(
+        // Meshes flip their triangles' normals as they load; the analytic shapes through
+        // their instance.
+        let flip_normals = !matches!(
             node.type_name.as_deref(),
             Some("obj" | "ply" | "serialized" | "csg")
-        ) && node.bool_or("flip_normals", false)?
-        {
-            // It would turn the surface's inside out (an area light would emit the other
-            // way, one-sided BSDFs face the other way): not silently ignored.
-            let e = node.error("`flip_normals` is supported on meshes (obj, ply, serialized) only");
-            if !self.options.lenient {
-                return Err(e);
-            }
-            log::warn!("{e} (ignored: --lenient)");
-        }
+        ) && node.bool_or("flip_normals", false)?;
         // Curves have their control points placed already (their radii stay as given).
         let placement = if matches!(
             node.type_name.as_deref(),
@@ -1218,6 +1212,7 @@ impl Builder {
                 albedo: Arc::new(Texture::Constant(Vec3::splat(default_albedo))),
             }))),
         });
+        instance.flip_normals = flip_normals;
         node.check_all_used()?;
         Ok(instance)
     }
@@ -1259,6 +1254,7 @@ impl Builder {
                     );
                     instance.material = shape.material;
                     instance.emission = shape.emission;
+                    instance.flip_normals = shape.flip_normals;
                     placed.push(instance);
                 }
             }
@@ -3108,34 +3104,42 @@ mod tests {
         std::fs::remove_dir_all(&dir).ok();
     }
 
-    /// `flip_normals` on an analytic shape is refused (it is not silently ignored), naming
-    /// the line; `false` is accepted, and meshes take either.
+    /// `flip_normals` on an analytic shape turns the normals of its hits (the
+    /// rectangle faces the camera at z = 5: its normal, -z, flipped to +z) and is kept by
+    /// the instances of a shape group; `false` and its absence leave them.
     #[test]
-    fn flip_normals_on_analytic_shapes_is_refused() {
-        let e = load(
-            &scene_with(
-                r#"<shape type="rectangle">
-            <boolean name="flip_normals" value="true"/></shape>"#,
-            ),
-            &[],
-        )
-        .unwrap_err()
-        .to_string();
-        assert!(e.contains("m.xml:") && e.contains("flip_normals"), "{e}");
-        load(
-            &scene_with(
-                r#"<shape type="sphere"><boolean name="flip_normals" value="false"/></shape>"#,
-            ),
+    fn flip_normals_turns_analytic_shapes() {
+        let rectangle = |flip: &str| {
+            format!(
+                r#"<shape type="rectangle">{flip}
+                    <transform name="to_world"><rotate y="1" angle="180"/><translate z="5"/></transform></shape>"#
+            )
+        };
+        let ray = crate::math::Ray::new(Vec3::ZERO, Vec3::Z);
+        for (flip, sign) in [
+            (r#"<boolean name="flip_normals" value="true"/>"#, 1.0),
+            (r#"<boolean name="flip_normals" value="false"/>"#, -1.0),
+            ("", -1.0),
+        ] {
+            let loaded = load(&scene_with(&rectangle(flip)), &[]).unwrap();
+            let si = loaded.scene.intersect(&ray).unwrap();
+            assert!((si.t - 5.0).abs() < 1e-4);
+            for n in [si.n, si.shading_n] {
+                assert!((n - Vec3::Z * sign).length() < 1e-5, "{flip:?}: {n:?}");
+            }
+        }
+        let loaded = load(
+            &scene_with(&format!(
+                r#"<shape type="shapegroup" id="g">{}</shape>
+                <shape type="instance"><ref id="g"/></shape>"#,
+                rectangle(r#"<boolean name="flip_normals" value="true"/>"#)
+            )),
             &[],
         )
         .unwrap();
-        let options = LoadOptions {
-            lenient: true,
-            ..Default::default()
-        };
-        let xml =
-            scene_with(r#"<shape type="disk"><boolean name="flip_normals" value="true"/></shape>"#);
-        crate::io::load_scene_str(&xml, Path::new("m.xml"), &options).unwrap();
+        assert!(loaded.scene.instances.iter().all(|i| i.flip_normals));
+        let si = loaded.scene.intersect(&ray).unwrap();
+        assert!((si.n - Vec3::Z).length() < 1e-5, "{:?}", si.n);
     }
 
     /// A shape without a BSDF gets Mitsuba's default, diffuse 0.5, except an area light,

@@ -199,6 +199,8 @@ pub struct AreaLight {
     area: f32,
     /// Flat triangle meshes, set up for sampling.
     flat_mesh: Option<FlatMeshEmitter>,
+    /// Whether the instance's normals are flipped ([`AreaLight::with_flipped_normals`]).
+    flip_normals: bool,
     /// Whether the surface is also scene geometry that rays can hit (then next-event
     /// estimation shares its paths with BSDF sampling by MIS); lightwave's area lights
     /// around an instance that is not in the scene are seen only by shadow rays.
@@ -232,6 +234,7 @@ impl AreaLight {
             sphere,
             area,
             flat_mesh: None,
+            flip_normals: false,
             placed: true,
         };
         if let Shape::TriangleMesh(m) = &*light.shape {
@@ -241,6 +244,19 @@ impl AreaLight {
             }
         }
         light
+    }
+
+    /// The light of an instance whose normals are flipped
+    /// ([`crate::scene::Instance::flip_normals`]): its one-sided emission leaves the
+    /// other side.
+    pub fn with_flipped_normals(mut self) -> Self {
+        self.flip_normals = true;
+        if let Some(mesh) = &mut self.flat_mesh {
+            for tri in &mut mesh.triangles {
+                tri.n = -tri.n;
+            }
+        }
+        self
     }
 
     /// An emitter that is not scene geometry: next-event estimation samples it, rays
@@ -343,7 +359,10 @@ impl AreaLight {
         if coverage <= 0.0 {
             return None;
         }
-        let si = si_obj.transformed(&self.render_from_object);
+        let mut si = si_obj.transformed(&self.render_from_object);
+        if self.flip_normals {
+            si.flip_normals();
+        }
         let area_pdf = self.render_area_pdf(object_pdf, si.n);
         towards_area_point(p, si.p, si.n, area_pdf, |w| {
             self.emission.eval(&si, w) * coverage
@@ -419,9 +438,14 @@ impl AreaLight {
             prim: 0,
             uv: Vec2::ZERO,
         };
-        self.shape
+        let mut si = self
+            .shape
             .interaction(&ray, &hit)
-            .transformed(&self.render_from_object)
+            .transformed(&self.render_from_object);
+        if self.flip_normals {
+            si.flip_normals();
+        }
+        si
     }
 
     /// Solid-angle density with which `sample` from `p` picks the point `si` of this light
@@ -696,6 +720,40 @@ mod tests {
                 (nee - rays).abs() < 0.02 * rays,
                 "{test:?}: next-event estimation {nee} against rays {rays}"
             );
+        }
+    }
+
+    /// A light whose instance flips its normals emits from the other side: a rectangle
+    /// (general area sampling) and a sphere (cone sampling, seen from outside, where its
+    /// flipped emission faces inwards).
+    #[test]
+    fn flipped_lights_emit_from_the_other_side() {
+        let t = Transform::translate(Vec3::new(0.2, -0.1, 0.0));
+        let mut rng = Pcg32::new(5, 9);
+        for (shape, p_front) in [
+            (Shape::Rectangle(Rectangle), Vec3::new(0.3, 0.2, 2.0)),
+            (Shape::Sphere(Sphere), Vec3::new(0.3, 0.2, 3.0)),
+        ] {
+            let name = shape.kind_name();
+            // The point on the other side of the rectangle; the sphere has no other side
+            // from which it can be sampled.
+            let p_back = Vec3::new(p_front.x, p_front.y, -p_front.z);
+            let plain = light(shape.clone(), t);
+            let flipped = light(shape, t).with_flipped_normals();
+            let total = |l: &AreaLight, p: Vec3, rng: &mut Pcg32| {
+                (0..2000)
+                    .filter_map(|_| {
+                        l.sample(p, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()))
+                    })
+                    .map(|s| s.weight.x)
+                    .sum::<f32>()
+            };
+            assert!(total(&plain, p_front, &mut rng) > 0.0, "{name}");
+            assert_eq!(total(&flipped, p_front, &mut rng), 0.0, "{name}");
+            if matches!(name, "rectangle") {
+                assert_eq!(total(&plain, p_back, &mut rng), 0.0, "{name}");
+                assert!(total(&flipped, p_back, &mut rng) > 0.0, "{name}");
+            }
         }
     }
 }

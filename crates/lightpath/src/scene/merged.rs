@@ -57,10 +57,12 @@ impl MergedMesh {
             let Shape::TriangleMesh(m) = &*inst.shape else {
                 continue;
             };
-            // A cutout mesh keeps its own instance: its hits depend on its mask.
+            // A cutout mesh keeps its own instance: its hits depend on its mask; so does
+            // one whose instance flips its normals.
             if uses[&Arc::as_ptr(m)] != 1
                 || m.triangle_count() > MAX_MERGED_TRIANGLES
                 || m.alpha().is_some()
+                || inst.flip_normals
             {
                 continue;
             }

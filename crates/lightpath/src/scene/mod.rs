@@ -46,6 +46,10 @@ pub struct Instance {
     /// How often next-event estimation picks that light, relative to a weight of 1 (0:
     /// never; its emission is then found by BSDF sampling alone).
     pub light_weight: f32,
+    /// Whether the surface's normals point the other way (Mitsuba's `flip_normals`):
+    /// its geometric and shading normals are negated, so a one-sided BSDF and an area
+    /// light's emission face the other side.
+    pub flip_normals: bool,
 }
 
 impl Instance {
@@ -59,6 +63,7 @@ impl Instance {
             emission: None,
             light: None,
             light_weight: 1.0,
+            flip_normals: false,
         }
     }
 
@@ -96,6 +101,9 @@ impl Instance {
             .interaction(&self.object_ray(ray), hit)
             .transformed(&self.render_from_object);
         si.wo = -ray.direction.normalize();
+        if self.flip_normals {
+            si.flip_normals();
+        }
         si
     }
 }
@@ -205,11 +213,12 @@ impl Scene {
                     ));
                 }
                 inst.light = Some(lights.len() as u32);
-                lights.push(Light::Area(AreaLight::new(
-                    inst.shape.clone(),
-                    inst.render_from_object,
-                    e.clone(),
-                )));
+                let light = AreaLight::new(inst.shape.clone(), inst.render_from_object, e.clone());
+                lights.push(Light::Area(if inst.flip_normals {
+                    light.with_flipped_normals()
+                } else {
+                    light
+                }));
                 weights.push(inst.light_weight);
             }
         }
