@@ -13,6 +13,7 @@ use lightpath::integrator::{AovLayer, Integrator};
 use lightpath::io::image::ExrChannel;
 use lightpath::io::{self, LoadedScene};
 use lightpath::render::{RenderControl, RenderStats, Rendered, Renderer};
+use lightpath::scene::CropWindow;
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -48,6 +49,11 @@ pub struct RenderArgs {
     /// 127.0.0.1:14158 by default). A missing viewer is a warning.
     #[arg(long, value_name = "HOST:PORT")]
     pub tev: Option<String>,
+    /// Render only this rectangle of the image (X and Y of its top-left pixel, its width
+    /// and height), its pixels exactly as in the whole image; the output is the
+    /// rectangle alone. Replaces a crop window the scene sets.
+    #[arg(long, value_parser = parse_crop, value_name = "X,Y,W,H")]
+    pub crop: Option<CropWindow>,
     /// Print render statistics (times, samples, rays, traversal work) to stdout.
     #[arg(long)]
     pub stats: bool,
@@ -61,6 +67,28 @@ pub struct RenderArgs {
     pub tone: ToneArgs,
     #[command(flatten)]
     pub options: RenderOptions,
+}
+
+/// `--crop X,Y,W,H`: four whole numbers, the size not zero (whether the rectangle fits
+/// the image is checked when it renders).
+fn parse_crop(text: &str) -> std::result::Result<CropWindow, String> {
+    let v: Vec<u32> = text
+        .split(',')
+        .map(|t| t.trim().parse::<u32>())
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|_| format!("expected X,Y,W,H (four whole numbers), got `{text}`"))?;
+    let [x, y, w, h] = v[..] else {
+        return Err(format!(
+            "expected X,Y,W,H (four whole numbers), got `{text}`"
+        ));
+    };
+    if w == 0 || h == 0 {
+        return Err(format!("the crop window `{text}` is empty"));
+    }
+    Ok(CropWindow {
+        offset: lightpath::math::UVec2::new(x, y),
+        size: lightpath::math::UVec2::new(w, h),
+    })
 }
 
 /// Time between passes when streaming to tev without a preview.
@@ -98,7 +126,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
         None => default_scene::load(&load),
     };
     spinner.finish_and_clear();
-    let loaded = loaded?;
+    let mut loaded = loaded?;
+    if args.crop.is_some() {
+        loaded.scene.crop = args.crop;
+    }
     let load_seconds = start.elapsed().as_secs_f64();
     let summary = SceneSummary::of(&loaded);
     if args.verbose && !quiet {

@@ -726,3 +726,48 @@ fn render_writes_hdr_and_renders_obj_scenes() {
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert!(!dir.join("bad.png").exists());
 }
+
+/// `--crop X,Y,W,H` writes the rectangle alone, its pixels those of the whole image (the
+/// image and an AOV layer); a rectangle outside the image, or a malformed one, is an
+/// error that writes nothing.
+#[test]
+fn render_crop_writes_that_part_of_the_image() {
+    let dir = temp_dir("crop");
+    let scene = repo_root().join("tests/scenes/shapes_normals.xml");
+    let scene = scene.to_str().unwrap();
+    let render = |extra: &[&str], name: &str| {
+        let mut args = vec!["render", scene, "-q", "--spp", "3", "--aov", "depth"];
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&["-o", name]);
+        lightpath(&args, &dir)
+    };
+    assert!(render(&[], "full.exr").status.success());
+    assert!(render(&["--crop", "7,5,20,13"], "part.exr")
+        .status
+        .success());
+    let (full, part) = (
+        exr_channels(&dir.join("full.exr")),
+        exr_channels(&dir.join("part.exr")),
+    );
+    let header = exr::prelude::read_all_flat_layers_from_file(dir.join("full.exr")).unwrap();
+    let width = header.layer_data[0].size.0;
+    for channel in ["R", "G", "B", "depth.Z"] {
+        let want: Vec<u32> = (5..18)
+            .flat_map(|y| (7..27).map(move |x| (x, y)))
+            .map(|(x, y)| full[channel][y * width + x].to_bits())
+            .collect();
+        let got: Vec<u32> = part[channel].iter().map(|v| v.to_bits()).collect();
+        assert_eq!(got, want, "{channel}");
+    }
+    for (bad, needle) in [
+        ("7,5,2000,13", "reaches outside"),
+        ("7,5,0,13", "empty"),
+        ("1,2,3", "X,Y,W,H"),
+    ] {
+        let out = render(&["--crop", bad], "bad.exr");
+        assert!(!out.status.success(), "{bad}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(needle), "{bad}: {err}");
+        assert!(!dir.join("bad.exr").exists(), "{bad}");
+    }
+}

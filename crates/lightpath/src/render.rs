@@ -288,12 +288,10 @@ impl Renderer<'_> {
         self.run(schedule, control.progress, on_pass)
     }
 
-    fn run(
-        &self,
-        schedule: Schedule,
-        progress: Option<&(dyn Fn(&Progress) + Sync)>,
-        on_pass: &mut dyn FnMut(&Pass) -> ControlFlow<()>,
-    ) -> Result<Rendered> {
+    /// The part of the camera's image to render: its top-left pixel and its size (the
+    /// scene's crop window, else the whole image). An error for an empty image or a crop
+    /// window that is empty or reaches outside the image.
+    fn window(&self) -> Result<(UVec2, UVec2)> {
         let res = self.camera.resolution();
         if res.x == 0 || res.y == 0 {
             return Err(Error::Invalid(format!(
@@ -301,12 +299,38 @@ impl Renderer<'_> {
                 res.x, res.y
             )));
         }
+        let Some(crop) = self.scene.crop else {
+            return Ok((UVec2::ZERO, res));
+        };
+        let end = crop.offset.as_u64vec2() + crop.size.as_u64vec2();
+        if crop.size.x == 0 || crop.size.y == 0 || end.x > res.x as u64 || end.y > res.y as u64 {
+            return Err(Error::Invalid(format!(
+                "the crop window of {}x{} pixels at ({}, {}) is empty or reaches outside \
+                 the {}x{} image",
+                crop.size.x, crop.size.y, crop.offset.x, crop.offset.y, res.x, res.y
+            )));
+        }
+        Ok((crop.offset, crop.size))
+    }
+
+    fn run(
+        &self,
+        schedule: Schedule,
+        progress: Option<&(dyn Fn(&Progress) + Sync)>,
+        on_pass: &mut dyn FnMut(&Pass) -> ControlFlow<()>,
+    ) -> Result<Rendered> {
+        let (origin, res) = self.window()?;
         let start = Instant::now();
         let deadline = schedule.budget.map(|b| start + b);
         let mut sums = vec![Vec3::ZERO; res.x as usize * res.y as usize];
         // Light-traced ghosts, summed apart so that every sum adds in sample order
         // whatever the passes are.
         let flare = self.light_traced_flare();
+        if flare.is_some() && self.scene.crop.is_some() {
+            return Err(Error::Invalid(
+                "a crop window cannot be rendered with light-traced lens flare".into(),
+            ));
+        }
         let mut flare_sums = vec![Vec3::ZERO; if flare.is_some() { sums.len() } else { 0 }];
         let mut image = Image::new(res.x, res.y);
         let mut stats = RenderStats::default();
@@ -320,6 +344,7 @@ impl Renderer<'_> {
             let pass_start = Instant::now();
             let job = PassJob {
                 res,
+                origin,
                 first: done,
                 count: size,
                 // The first pass always completes: the image needs a sample per pixel.
@@ -574,7 +599,7 @@ impl Renderer<'_> {
                     next[s] = job.first;
                 }
                 let k = slot_pixel[s];
-                let pixel = pixel_of(k);
+                let pixel = pixel_of(k) + job.origin;
                 let sampler = &mut samplers[s];
                 sampler.start_pixel_sample(pixel, next[s]);
                 next[s] += 1;
@@ -697,7 +722,7 @@ impl Renderer<'_> {
                 if job.abandon_now(abandoned) {
                     return None;
                 }
-                let pixel = UVec2::new(x, y);
+                let pixel = UVec2::new(x, y) + job.origin;
                 // Per-pixel counters, added into 64-bit totals (a tile's could overflow u32).
                 let mut ray_stats = RayStats::default();
                 // Continue the pixel's running sum in sample order: the same additions,
@@ -759,8 +784,8 @@ impl Renderer<'_> {
     /// at each pixel sample and gives the film and lens positions first), averaged like
     /// the image. One intersection per sample; only run when AOVs are asked for.
     pub fn render_aovs(&self, spp: u32) -> Result<AovImages> {
-        let res = self.camera.resolution();
-        if res.x == 0 || res.y == 0 || spp == 0 {
+        let (origin, res) = self.window()?;
+        if spp == 0 {
             return Err(Error::Invalid(format!(
                 "no AOVs for an image of {}x{} at {spp} samples per pixel",
                 res.x, res.y
@@ -772,7 +797,7 @@ impl Renderer<'_> {
                 let mut sampler = self.sampler.clone();
                 (0..res.x)
                     .map(|x| {
-                        let pixel = UVec2::new(x, y);
+                        let pixel = UVec2::new(x, y) + origin;
                         let (mut albedo, mut normal) = (Vec3::ZERO, Vec3::ZERO);
                         let (mut depth, mut hits) = (0.0f64, 0u32);
                         for index in 0..spp {
@@ -817,7 +842,11 @@ type TileResult = (u32, u32, Vec<Vec3>, RenderStats);
 
 /// One pass of a render.
 struct PassJob<'a> {
+    /// The size of the part of the image rendered (see [`Renderer::window`]) ...
     res: UVec2,
+    /// ... and its top-left pixel in the camera's image: tiles and sums are in the
+    /// window's coordinates, camera rays and samples in the image's.
+    origin: UVec2,
     first: u32,
     count: u32,
     /// Abandon the pass after this instant.
@@ -864,6 +893,7 @@ impl Schedule {
 mod tests {
     use super::*;
     use crate::io::{load_scene_str, LoadOptions, LoadedScene};
+    use crate::scene::CropWindow;
     use std::path::Path;
 
     fn scene(sampler: &str, spp: u32) -> LoadedScene {
@@ -1089,6 +1119,79 @@ mod tests {
     }
 
     /// The progressive render of `spp` samples per pixel, in more than one pass.
+    /// The pixels of `image` (of width `width`) in the crop window.
+    fn cut<T: Copy>(pixels: &[T], width: u32, crop: CropWindow) -> Vec<T> {
+        (crop.offset.y..crop.offset.y + crop.size.y)
+            .flat_map(|y| {
+                (crop.offset.x..crop.offset.x + crop.size.x)
+                    .map(move |x| pixels[(y * width + x) as usize])
+            })
+            .collect()
+    }
+
+    /// A crop window renders its pixels exactly as the whole image does (bit for bit,
+    /// in one pass and in several, for the direct integrator ray by ray and the path
+    /// tracer in its wavefront, and the AOVs); windows that are empty or reach outside
+    /// the image are errors.
+    #[test]
+    fn a_crop_window_renders_the_pixels_of_the_whole_image() {
+        let crop = CropWindow {
+            offset: UVec2::new(5, 3),
+            size: UVec2::new(19, 14),
+        };
+        for mut l in [
+            scene("sobol", 4),
+            mesh_scene("independent", "pathtracer", 3),
+        ] {
+            let width = l.scene.camera.as_ref().unwrap().resolution().x;
+            let (full, _) = renderer(&l).render(&|_| {}).unwrap();
+            let full_aovs = renderer(&l).render_aovs(2).unwrap();
+            l.scene.crop = Some(crop);
+            let r = renderer(&l);
+            let (image, _) = r.render(&|_| {}).unwrap();
+            assert_eq!((image.width, image.height), (19, 14));
+            let want = cut(&bits(&full), width, crop);
+            assert!(full.pixels.iter().any(|p| p.x > 0.0), "the scene is lit");
+            assert_eq!(bits(&image), want);
+            let spp = l.sampler.samples_per_pixel();
+            assert_eq!(bits(&in_passes(&r, spp).image), want, "in passes");
+            let aovs = r.render_aovs(2).unwrap();
+            assert_eq!(
+                bits(&aovs.albedo),
+                cut(&bits(&full_aovs.albedo), width, crop)
+            );
+            assert_eq!(
+                bits(&aovs.normal),
+                cut(&bits(&full_aovs.normal), width, crop)
+            );
+            let depth_bits = |d: &[f32]| d.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(
+                depth_bits(&aovs.depth),
+                cut(&depth_bits(&full_aovs.depth), width, crop)
+            );
+            let res = l.scene.camera.as_ref().unwrap().resolution();
+            for bad in [
+                CropWindow {
+                    offset: UVec2::new(1, 1),
+                    size: res,
+                },
+                CropWindow {
+                    offset: UVec2::ZERO,
+                    size: UVec2::new(0, 4),
+                },
+                CropWindow {
+                    offset: UVec2::new(u32::MAX, 0),
+                    size: UVec2::new(2, 2),
+                },
+            ] {
+                l.scene.crop = Some(bad);
+                let e = renderer(&l).render(&|_| {}).unwrap_err().to_string();
+                assert!(e.contains("crop window"), "{e}");
+                assert!(renderer(&l).render_aovs(1).is_err());
+            }
+        }
+    }
+
     fn in_passes(r: &Renderer, spp: u32) -> Rendered {
         let out = r
             .render_progressive(

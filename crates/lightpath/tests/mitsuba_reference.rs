@@ -26,7 +26,8 @@
 //! linear curves (`linearcurve`: tapering strands, a wire with sharp joints placed by a
 //! scaling `to_world`) and cubic B-spline curves (`bsplinecurve`: wavy tapering strands
 //! and a thick arch), and `flip_normals` on analytic shapes (a rectangle area light, a
-//! dielectric sphere that becomes a bubble, an open cylinder with a one-sided diffuse).
+//! dielectric sphere that becomes a bubble, an open cylinder with a one-sided diffuse),
+//! and a film's crop window.
 
 use lightpath::film::{Image, ImageErrors};
 use lightpath::io::{load_scene, load_scene_str, LoadOptions, LoadedScene};
@@ -178,6 +179,53 @@ fn the_flip_comparison_catches_unflipped_shapes() {
             what,
         );
     }
+}
+
+/// The film's crop window (`crop_offset_x`, ..., as Mitsuba reads them): the flip scene
+/// cropped to 30x25 pixels at (20, 10) matches that part of its Mitsuba reference
+/// (Mitsuba's own crop of the scene is that part too: relMSE 2.2e-4 against it at 4096
+/// spp).
+#[test]
+fn a_cropped_film_matches_that_part_of_mitsuba() {
+    let path = scene_path("flip");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let film = r#"<integer name="height" value="48"/>"#;
+    assert!(text.contains(film));
+    let cropped = text.replace(
+        film,
+        &format!(
+            r#"{film}<integer name="crop_offset_x" value="20"/>
+            <integer name="crop_offset_y" value="10"/><integer name="crop_width" value="30"/>
+            <integer name="crop_height" value="25"/>"#
+        ),
+    );
+    let loaded = load_scene_str(&cropped, &path, &LoadOptions::default()).unwrap();
+    let image = render(&loaded, 4096);
+    assert_eq!((image.width, image.height), (30, 25));
+    let full = reference("flip");
+    let part = Image {
+        width: 30,
+        height: 25,
+        pixels: (10..35)
+            .flat_map(|y| (20..50).map(move |x| (x, y)))
+            .map(|(x, y)| full.pixels[(y * full.width + x) as usize])
+            .collect(),
+    };
+    let errors = ImageErrors::compute(&image, &part).expect("sizes match");
+    let ratio = mean(&image) / mean(&part);
+    eprintln!(
+        "flip, cropped: relMSE {:.3e}, mean ratio {ratio:.4}",
+        errors.rel_mse
+    );
+    assert!(
+        errors.rel_mse < MAX_REL_MSE,
+        "relMSE {:.3e}",
+        errors.rel_mse
+    );
+    assert!(
+        (ratio - 1.0).abs() < MAX_MEAN_DEVIATION,
+        "mean ratio {ratio:.4}"
+    );
 }
 
 #[test]

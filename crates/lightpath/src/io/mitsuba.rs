@@ -30,7 +30,9 @@
 //!   `fov_axis` `smaller`/`larger` pick x or y from the film size. Camera rays start at
 //!   `near_clip` and end at `far_clip` (defaults 0.01 and 10⁴), measured along the
 //!   viewing axis as Mitsuba measures them.
-//! - Films: `hdrfilm` `width`/`height` (defaults 768×576). `rfilter` `box`, `tent`
+//! - Films: `hdrfilm` `width`/`height` (defaults 768×576), and the crop window
+//!   `crop_offset_x`/`crop_offset_y`/`crop_width`/`crop_height` (the image is that part
+//!   of the film, rendered as in the whole: [`crate::scene::CropWindow`]). `rfilter` `box`, `tent`
 //!   (`radius`), `gaussian` (`stddev`; the default filter, as in Mitsuba), `mitchell`
 //!   (`B`, `C`), `catmullrom` and `lanczos` (`lobes`) are applied by filter importance
 //!   sampling ([`Filter`]; the last three, with negative lobes, by weighted samples).
@@ -116,7 +118,7 @@ use crate::material::{
 };
 use crate::math::Transform;
 use crate::sampling::{IndependentSampler, Sampler};
-use crate::scene::{Instance, Scene};
+use crate::scene::{CropWindow, Instance, Scene};
 use crate::texture::{
     BorderMode, Checkerboard, FilterMode, ImageTexture, Texture, TransformedTexture,
 };
@@ -452,6 +454,13 @@ const IORS: &[(&str, f32)] = &[
 const INTEGRATORS: &[&str] = &["path", "direct", "aov"];
 const SENSORS: &[&str] = &["perspective", "thinlens", "orthographic", "realistic"];
 const FILMS: &[&str] = &["hdrfilm"];
+
+/// What a `<film>` sets: the image size, the pixel filter and the crop window.
+struct Film {
+    resolution: UVec2,
+    filter: Filter,
+    crop: Option<CropWindow>,
+}
 const RFILTERS: &[&str] = &[
     "box",
     "tent",
@@ -673,14 +682,15 @@ impl Builder {
                 hide_emitters: false,
             }),
         };
-        let (camera, sampler, filter, clip) =
+        let (camera, sampler, film, clip) =
             sensor.ok_or_else(|| root.error("the scene has no <sensor>"))?;
         let mut scene = Scene::new(
             instances,
             Some(camera),
             self.options.accel.unwrap_or_default(),
         );
-        scene.filter = filter;
+        scene.filter = film.filter;
+        scene.crop = film.crop;
         scene.clip = Some(clip);
         let weights = vec![1.0; lights.len()];
         scene
@@ -825,18 +835,18 @@ impl Builder {
         }
     }
 
-    /// The camera, its sampler, its film's pixel filter and its near and far clip
-    /// distances.
-    fn sensor(&mut self, node: &Node) -> Result<(Camera, Sampler, Filter, (f32, f32))> {
+    /// The camera, its sampler, its film and its near and far clip distances.
+    fn sensor(&mut self, node: &Node) -> Result<(Camera, Sampler, Film, (f32, f32))> {
         self.check_children(node, &["transform", "film", "sampler"])?;
-        let film = self.single(node, "film")?;
-        let (resolution, filter) = match &film {
+        let film = match &self.single(node, "film")? {
             Some(f) => self.film(f)?,
-            None => (
-                UVec2::new(768, 576),
-                Filter::gaussian(0.5).with_steps(MITSUBA_FILTER_STEPS),
-            ),
+            None => Film {
+                resolution: UVec2::new(768, 576),
+                filter: Filter::gaussian(0.5).with_steps(MITSUBA_FILTER_STEPS),
+                crop: None,
+            },
         };
+        let resolution = film.resolution;
         let sampler = match self.single(node, "sampler")? {
             Some(s) => self.sampler(&s)?,
             None => Sampler::Independent(IndependentSampler::new(4, 0)),
@@ -931,11 +941,11 @@ impl Builder {
             _ => return Err(unknown_type(node, SENSORS)),
         };
         self.check_used(node)?;
-        Ok((camera, sampler, filter, (near, far)))
+        Ok((camera, sampler, film, (near, far)))
     }
 
     /// The film's size and reconstruction filter (Mitsuba's default: a Gaussian).
-    fn film(&self, node: &Node) -> Result<(UVec2, Filter)> {
+    fn film(&self, node: &Node) -> Result<Film> {
         self.plugin(node, FILMS, Fallback::Use("hdrfilm"))?;
         self.check_children(node, &["rfilter"])?;
         let mut filter = Filter::gaussian(0.5);
@@ -985,6 +995,29 @@ impl Builder {
                 return Err(node.error(format!("film {name} out of range: {v}")));
             }
         }
+        let resolution = UVec2::new(w as u32, h as u32);
+        // Mitsuba's crop: the size defaults to the whole film's, whatever the offset.
+        let crop_value = |name: &str, default: u32| -> Result<u32> {
+            let v = node.int(name)?.unwrap_or(default as i64);
+            u32::try_from(v).map_err(|_| node.error(format!("film {name} out of range: {v}")))
+        };
+        let offset = UVec2::new(
+            crop_value("crop_offset_x", 0)?,
+            crop_value("crop_offset_y", 0)?,
+        );
+        let size = UVec2::new(
+            crop_value("crop_width", resolution.x)?,
+            crop_value("crop_height", resolution.y)?,
+        );
+        let end = offset.as_u64vec2() + size.as_u64vec2();
+        if size.x == 0 || size.y == 0 || end.x > w as u64 || end.y > h as u64 {
+            return Err(node.error(format!(
+                "the film's crop of {}x{} pixels at ({}, {}) is empty or reaches outside its \
+                 {w}x{h} pixels",
+                size.x, size.y, offset.x, offset.y
+            )));
+        }
+        let crop = (size != resolution).then_some(CropWindow { offset, size });
         for p in [
             "pixel_format",
             "file_format",
@@ -996,7 +1029,11 @@ impl Builder {
             node.take(p);
         }
         self.check_used(node)?;
-        Ok((UVec2::new(w as u32, h as u32), filter))
+        Ok(Film {
+            resolution,
+            filter,
+            crop,
+        })
     }
 
     fn sampler(&self, node: &Node) -> Result<Sampler> {
@@ -3140,6 +3177,47 @@ mod tests {
         assert!(loaded.scene.instances.iter().all(|i| i.flip_normals));
         let si = loaded.scene.intersect(&ray).unwrap();
         assert!((si.n - Vec3::Z).length() < 1e-5, "{:?}", si.n);
+    }
+
+    /// The film's crop window: read into the scene (the size defaulting to the film's,
+    /// as in Mitsuba), none when it is the whole film, and an error naming the line when
+    /// it is empty or reaches outside the film.
+    #[test]
+    fn film_crop_windows() {
+        let with_film = |extra: &str| {
+            format!(
+                r#"<scene version="3.0.0"><sensor type="perspective">
+    <film type="hdrfilm"><integer name="width" value="40"/><integer name="height" value="30"/>
+        {extra}</film>
+</sensor></scene>"#
+            )
+        };
+        let crop = |extra: &str| load(&with_film(extra), &[]).map(|l| l.scene.crop);
+        assert_eq!(crop("").unwrap(), None);
+        assert_eq!(
+            crop(r#"<integer name="crop_width" value="40"/>"#).unwrap(),
+            None
+        );
+        assert_eq!(
+            crop(
+                r#"<integer name="crop_offset_x" value="10"/><integer name="crop_offset_y" value="5"/>
+                   <integer name="crop_width" value="30"/><integer name="crop_height" value="20"/>"#
+            )
+            .unwrap(),
+            Some(CropWindow {
+                offset: UVec2::new(10, 5),
+                size: UVec2::new(30, 20),
+            })
+        );
+        for bad in [
+            // The size defaults to the whole film's, so an offset alone reaches outside.
+            r#"<integer name="crop_offset_x" value="1"/>"#,
+            r#"<integer name="crop_width" value="0"/>"#,
+            r#"<integer name="crop_height" value="-3"/>"#,
+        ] {
+            let e = crop(bad).unwrap_err().to_string();
+            assert!(e.contains("m.xml:2") && e.contains("crop"), "{bad}: {e}");
+        }
     }
 
     /// A shape without a BSDF gets Mitsuba's default, diffuse 0.5, except an area light,

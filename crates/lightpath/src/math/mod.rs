@@ -12,7 +12,7 @@ mod transform;
 pub use bounds::Bounds3;
 pub use float::{gamma, next_float_down, next_float_up, offset_ray_origin, round_away};
 pub use frame::Frame;
-pub use glam::{Mat3, Mat4, Quat, Vec2, Vec3, Vec3A, Vec4};
+pub use glam::{Mat3, Mat4, Quat, UVec2, Vec2, Vec3, Vec3A, Vec4};
 pub use ray::Ray;
 pub use special::{erf, erf_inv};
 pub use transform::{AxisConvention, EulerOrder, Handedness, Transform};

@@ -108,6 +108,15 @@ impl Instance {
     }
 }
 
+/// A rectangle of the camera's image, in pixels: its top-left corner and its size. Its
+/// pixels render exactly as they do in the whole image (the same samples, filter and
+/// camera rays); the image is the rectangle alone.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CropWindow {
+    pub offset: glam::UVec2,
+    pub size: glam::UVec2,
+}
+
 /// Everything needed to render: geometry, camera, and later lights and materials.
 #[derive(Debug, Clone)]
 pub struct Scene {
@@ -125,6 +134,9 @@ pub struct Scene {
     /// Near and far clip distances along the camera's viewing axis (Mitsuba's
     /// `near_clip`/`far_clip`); `None`: no clipping.
     pub clip: Option<(f32, f32)>,
+    /// The part of the camera's image that is rendered (Mitsuba's film crop, a render
+    /// region); `None`: all of it.
+    pub crop: Option<CropWindow>,
     bounds: Bounds3,
     /// Lights for next-event estimation and the environment.
     pub lights: Vec<Light>,
@@ -185,6 +197,7 @@ impl Scene {
             camera,
             filter: crate::film::Filter::Box,
             clip: None,
+            crop: None,
             bounds,
             lights: Vec::new(),
             light_sampler,
