@@ -473,6 +473,25 @@ mod tests {
     use crate::geometry::{Cuboid, Cylinder, Disk, Rectangle, Sphere};
     use crate::sampling::Pcg32;
 
+    /// The cone of directions from `p` around the bounding sphere of `bounds`: its
+    /// uniform density and a sampler of its directions.
+    fn cone_towards(
+        p: Vec3,
+        bounds: crate::math::Bounds3,
+    ) -> (f32, impl FnMut(&mut Pcg32) -> Vec3) {
+        let c = (bounds.min + bounds.max) * 0.5;
+        let r = bounds.diagonal().length() * 0.5;
+        let cos_max = (1.0 - r * r / (c - p).length_squared()).sqrt();
+        let frame = crate::math::Frame::from_normal((c - p).normalize());
+        let direction = move |rng: &mut Pcg32| {
+            let cos_t = 1.0 - rng.next_f32() * (1.0 - cos_max);
+            let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+            let phi = 2.0 * PI * rng.next_f32();
+            frame.to_world(Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t))
+        };
+        (1.0 / (2.0 * PI * (1.0 - cos_max)), direction)
+    }
+
     fn light(shape: Shape, t: Transform) -> AreaLight {
         AreaLight::new(
             Arc::new(shape),
@@ -530,19 +549,11 @@ mod tests {
                 hits
             };
             // Directions uniform in the cone around the instance's bounding sphere.
-            let b = scene.bounds();
-            let (c, r): (Vec3, f32) = ((b.min + b.max) * 0.5, b.diagonal().length() * 0.5);
-            let axis = (c - p).normalize();
-            let cos_max = (1.0 - r * r / (c - p).length_squared()).sqrt();
-            let frame = crate::math::Frame::from_normal(axis);
-            let cone_pdf = 1.0 / (2.0 * PI * (1.0 - cos_max));
+            let (cone_pdf, mut direction) = cone_towards(p, scene.bounds());
             let n = 200_000;
             let mut sum = 0.0f64;
             for _ in 0..n {
-                let cos_t = 1.0 - rng.next_f32() * (1.0 - cos_max);
-                let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-                let phi = 2.0 * PI * rng.next_f32();
-                let w = frame.to_world(Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t));
+                let w = direction(&mut rng);
                 let hits = hits_along(w);
                 let used = if cone { hits.len().min(1) } else { hits.len() };
                 for si in &hits[..used] {
@@ -697,18 +708,10 @@ mod tests {
                 }
             }
             // Rays uniform in the cone around the quad's bounding sphere.
-            let bounds = scene.bounds();
-            let c = (bounds.min + bounds.max) * 0.5;
-            let r = bounds.diagonal().length() * 0.5;
-            let cos_max = (1.0 - r * r / (c - p).length_squared()).sqrt();
-            let frame = crate::math::Frame::from_normal((c - p).normalize());
-            let cone_pdf = 1.0 / (2.0 * PI * (1.0 - cos_max));
+            let (cone_pdf, mut direction) = cone_towards(p, scene.bounds());
             let mut rays = 0.0f64;
             for _ in 0..n {
-                let cos_t = 1.0 - rng.next_f32() * (1.0 - cos_max);
-                let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-                let phi = 2.0 * PI * rng.next_f32();
-                let w = frame.to_world(Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t));
+                let w = direction(&mut rng);
                 if let Some(si) = scene.intersect(&crate::math::Ray::new(p, w)) {
                     let le = l.emission.eval(&si, -w).x;
                     rays += (le * n_r.dot(w).max(0.0) / cone_pdf) as f64;
