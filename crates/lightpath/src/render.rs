@@ -302,8 +302,7 @@ impl Renderer<'_> {
         let Some(crop) = self.scene.crop else {
             return Ok((UVec2::ZERO, res));
         };
-        let end = crop.offset.as_u64vec2() + crop.size.as_u64vec2();
-        if crop.size.x == 0 || crop.size.y == 0 || end.x > res.x as u64 || end.y > res.y as u64 {
+        if !crop.fits(res) {
             return Err(Error::Invalid(format!(
                 "the crop window of {}x{} pixels at ({}, {}) is empty or reaches outside \
                  the {}x{} image",

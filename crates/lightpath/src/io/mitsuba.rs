@@ -1009,15 +1009,15 @@ impl Builder {
             crop_value("crop_width", resolution.x)?,
             crop_value("crop_height", resolution.y)?,
         );
-        let end = offset.as_u64vec2() + size.as_u64vec2();
-        if size.x == 0 || size.y == 0 || end.x > w as u64 || end.y > h as u64 {
+        let crop = CropWindow { offset, size };
+        if !crop.fits(resolution) {
             return Err(node.error(format!(
                 "the film's crop of {}x{} pixels at ({}, {}) is empty or reaches outside its \
                  {w}x{h} pixels",
                 size.x, size.y, offset.x, offset.y
             )));
         }
-        let crop = (size != resolution).then_some(CropWindow { offset, size });
+        let crop = (size != resolution).then_some(crop);
         for p in [
             "pixel_format",
             "file_format",

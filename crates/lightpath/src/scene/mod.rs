@@ -117,6 +117,17 @@ pub struct CropWindow {
     pub size: glam::UVec2,
 }
 
+impl CropWindow {
+    /// Whether the window holds a pixel and lies inside an image of `resolution`.
+    pub fn fits(&self, resolution: glam::UVec2) -> bool {
+        let end = self.offset.as_u64vec2() + self.size.as_u64vec2();
+        self.size.x > 0
+            && self.size.y > 0
+            && end.x <= u64::from(resolution.x)
+            && end.y <= u64::from(resolution.y)
+    }
+}
+
 /// Everything needed to render: geometry, camera, and later lights and materials.
 #[derive(Debug, Clone)]
 pub struct Scene {
