@@ -507,11 +507,10 @@ impl TriangleMesh {
         let Some(mask) = &self.alpha else {
             return true;
         };
-        let alpha = mask.coverage.eval(self.uv_at(prim, b1, b2)).x;
-        match mask.test {
-            AlphaTest::Cutoff(cutoff) => alpha >= cutoff,
-            AlphaTest::Stochastic => alpha > alpha_hash(ray, prim),
-        }
+        // A ray meets the surface with probability `coverage` (0 or 1 for a cutoff; the
+        // hash, uniform in [0, 1), decides the fractions).
+        let coverage = mask.coverage_at(self.uv_at(prim, b1, b2));
+        coverage >= 1.0 || (coverage > 0.0 && coverage > alpha_hash(ray, prim))
     }
 
     /// Texture coordinates at barycentrics `(b1, b2)` of triangle `prim`: the mesh's,
