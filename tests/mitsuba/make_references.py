@@ -3,6 +3,7 @@
     python3 tests/mitsuba/make_references.py textures        # needs numpy + pillow
     python3 tests/mitsuba/make_references.py curves          # the curve files
     python3 tests/mitsuba/make_references.py serialized      # meshes.serialized
+    python3 tests/mitsuba/make_references.py colors          # the vertex-coloured PLY files
     python3 tests/mitsuba/make_references.py references VENV # needs a venv with mitsuba 3
 
 The references are rendered with Mitsuba 3.9.1 (scalar_rgb) through
@@ -16,7 +17,7 @@ import subprocess
 import sys
 
 HERE = pathlib.Path(__file__).resolve().parent
-SCENES = ["box", "materials", "lights", "plastics", "curves", "bspline", "mask", "serialized", "bump", "principled", "scalars", "flip"]
+SCENES = ["box", "materials", "lights", "plastics", "curves", "bspline", "mask", "serialized", "bump", "principled", "scalars", "flip", "colors"]
 SPP = 16384
 
 
@@ -161,6 +162,57 @@ def serialized():
     (HERE / "meshes.serialized").write_bytes(data)
 
 
+def colors():
+    """PLY meshes with float vertex colours (`r`, `g`, `b`: Mitsuba's `vertex_color`)."""
+    import math
+
+    def ply(name, positions, colours, faces):
+        lines = ["ply", "format ascii 1.0", f"element vertex {len(positions)}"]
+        lines += [f"property float {c}" for c in ("x", "y", "z", "r", "g", "b")]
+        lines += [f"element face {len(faces)}", "property list uchar int vertex_indices",
+                  "end_header"]
+        for p, c in zip(positions, colours):
+            lines.append(" ".join(f"{x:.6f}" for x in (*p, *c)))
+        for f in faces:
+            lines.append(" ".join(str(x) for x in (len(f), *f)))
+        (HERE / name).write_text("\n".join(lines) + "\n")
+
+    # (Triangles only: Mitsuba 3.9's ascii reader does not take quads.)
+    # A UV sphere of 24 x 12 quads (flat triangles, no normals in the file) whose colour
+    # runs round the hue circle with longitude and fades to white at the top.
+    positions, colours, faces = [], [], []
+    rows, cols = 12, 24
+    for i in range(rows + 1):
+        theta = math.pi * i / rows
+        for j in range(cols + 1):
+            phi = 2 * math.pi * j / cols
+            positions.append((math.sin(theta) * math.cos(phi), math.cos(theta),
+                              math.sin(theta) * math.sin(phi)))
+            hue = [0.5 + 0.45 * math.cos(phi - k * 2 * math.pi / 3) for k in range(3)]
+            w = (1 + math.cos(theta)) / 2
+            colours.append(tuple(h * (1 - w) + 0.9 * w for h in hue))
+    for i in range(rows):
+        for j in range(cols):
+            a, b = i * (cols + 1) + j, i * (cols + 1) + j + 1
+            faces += [(a, b, b + cols + 1), (a, b + cols + 1, a + cols + 1)]
+    ply("colors_sphere.ply", positions, colours, faces)
+    # A floor of 4 x 4 quads, its corners' colours red, green, blue and grey.
+    positions, colours, faces = [], [], []
+    corner = [(0.8, 0.15, 0.1), (0.1, 0.7, 0.2), (0.15, 0.2, 0.8), (0.6, 0.6, 0.6)]
+    for i in range(5):
+        for j in range(5):
+            s, t = i / 4, j / 4
+            positions.append((2 * s - 1, 0.0, 2 * t - 1))
+            colours.append(tuple(corner[0][k] * (1 - s) * (1 - t) + corner[1][k] * s * (1 - t)
+                                 + corner[2][k] * (1 - s) * t + corner[3][k] * s * t
+                                 for k in range(3)))
+    for i in range(4):
+        for j in range(4):
+            a = i * 5 + j
+            faces += [(a, a + 1, a + 6), (a, a + 6, a + 5)]
+    ply("colors_floor.ply", positions, colours, faces)
+
+
 def references(venv):
     render = HERE.parents[1] / ".." / "shared" / "tools" / "mitsuba-ref" / "render.py"
     for scene in SCENES:
@@ -186,5 +238,7 @@ if __name__ == "__main__":
         curves()
     elif sys.argv[1] == "serialized":
         serialized()
+    elif sys.argv[1] == "colors":
+        colors()
     else:
         references(sys.argv[2])

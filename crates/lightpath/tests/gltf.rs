@@ -219,7 +219,7 @@ fn camera_lights_and_materials() {
         assert!((p.roughness.eval(uv).x - 128.0 / 255.0 * 0.6).abs() < 1e-5);
         assert!((p.metallic.eval(uv).x - 64.0 / 255.0 * 0.8).abs() < 1e-5);
         // A flat normal map leaves the shading frame alone.
-        assert!((nm.frame(uv, Vec3::Z).n - Vec3::Z).length() < 0.01);
+        assert!((nm.frame(uv.into(), Vec3::Z).n - Vec3::Z).length() < 0.01);
 
         // Both cubes use material 0: one material, built once.
         let (m0, m1) = (&scene.instances[0].material, &scene.instances[1].material);
@@ -533,4 +533,83 @@ fn unsupported_things_fail_or_are_skipped() {
     doc["scenes"][0]["nodes"][0] = 99.into();
     let path = write_scene(&dir, "dangling.gltf", &doc, &[]);
     fails(&path, "invalid glTF");
+}
+
+/// `COLOR_0` multiplies the base colour: a triangle with normalized 8-bit RGBA vertex
+/// colours (linear, alpha not read) and one without them, both of the same material,
+/// seen through rays at known barycentrics.
+#[test]
+fn vertex_colours_multiply_the_base_colour() {
+    let dir = scratch("colors");
+    let mut bin: Vec<u8> = Vec::new();
+    // Two triangles' positions (f32 x 3 each, the second one behind the first at z = -1,
+    // shifted right), then the first one's colours (u8 x 4).
+    let corners = [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+    for c in corners {
+        bin.extend(c.iter().flat_map(|x| x.to_le_bytes()));
+    }
+    for c in corners {
+        bin.extend(
+            [c[0] + 2.0, c[1], -1.0]
+                .iter()
+                .flat_map(|x| x.to_le_bytes()),
+        );
+    }
+    for rgba in [[255u8, 0, 0, 255], [0, 255, 0, 0], [0, 0, 255, 128]] {
+        bin.extend(rgba);
+    }
+    std::fs::write(dir.join("colors.bin"), &bin).unwrap();
+    let doc = parse_json(&format!(
+        r#"{{
+        "asset": {{"version": "2.0"}},
+        "scene": 0,
+        "scenes": [{{"nodes": [0]}}],
+        "nodes": [{{"mesh": 0}}],
+        "meshes": [{{"primitives": [
+            {{"attributes": {{"POSITION": 0, "COLOR_0": 2}}, "material": 0}},
+            {{"attributes": {{"POSITION": 1}}, "material": 0}}
+        ]}}],
+        "materials": [{{"pbrMetallicRoughness": {{"baseColorFactor": [0.5, 0.8, 1.0, 1.0]}}}}],
+        "buffers": [{{"uri": "colors.bin", "byteLength": {}}}],
+        "bufferViews": [
+            {{"buffer": 0, "byteOffset": 0, "byteLength": 72}},
+            {{"buffer": 0, "byteOffset": 72, "byteLength": 12}}
+        ],
+        "accessors": [
+            {{"bufferView": 0, "byteOffset": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+              "min": [0, 0, 0], "max": [1, 1, 0]}},
+            {{"bufferView": 0, "byteOffset": 36, "componentType": 5126, "count": 3, "type": "VEC3",
+              "min": [2, 0, -1], "max": [3, 1, -1]}},
+            {{"bufferView": 1, "componentType": 5121, "normalized": true, "count": 3, "type": "VEC4"}}
+        ]
+    }}"#,
+        bin.len()
+    ));
+    let path = write_scene(&dir, "colors.gltf", &doc, &["hierarchy.bin", "normal.png"]);
+    let loaded = load(&path).unwrap();
+    let scene = &loaded.scene;
+    let factor = Vec3::new(0.5, 0.8, 1.0);
+    let albedo_at = |x: f32, y: f32, z: f32| {
+        let ray = lightpath::math::Ray::new(Vec3::new(x, y, z + 5.0), -Vec3::Z);
+        let si = scene.intersect(&ray).expect("the ray hits");
+        scene.material(&si).unwrap().albedo(si.tex())
+    };
+    // At barycentrics (0.2, 0.3, 0.5) of the coloured triangle: red 0.2, green 0.3,
+    // blue 0.5.
+    let got = albedo_at(0.3, 0.5, 0.0);
+    let want = factor * Vec3::new(0.2, 0.3, 0.5);
+    assert!(
+        (got - want).abs().max_element() < 1e-5,
+        "{got} against {want}"
+    );
+    // The uncoloured triangle of the same material: the factor alone.
+    let got = albedo_at(2.3, 0.5, -1.0);
+    assert!(
+        (got - factor).abs().max_element() < 1e-6,
+        "{got} against {factor}"
+    );
+}
+
+fn parse_json(text: &str) -> Value {
+    gltf::json::deserialize::from_str(text).unwrap()
 }

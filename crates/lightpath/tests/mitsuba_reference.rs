@@ -27,7 +27,8 @@
 //! scaling `to_world`) and cubic B-spline curves (`bsplinecurve`: wavy tapering strands
 //! and a thick arch), and `flip_normals` on analytic shapes (a rectangle area light, a
 //! dielectric sphere that becomes a bubble, an open cylinder with a one-sided diffuse),
-//! and a film's crop window.
+//! a film's crop window, and vertex colours (`mesh_attribute` `vertex_color` from PLY
+//! files, as a diffuse reflectance and a principled base colour).
 
 use lightpath::film::{Image, ImageErrors};
 use lightpath::io::{load_scene, load_scene_str, LoadOptions, LoadedScene};
@@ -159,6 +160,25 @@ fn check_caught(name: &str, from: &str, to: &str, what: &str) {
 #[test]
 fn flipped_normals_match_mitsuba() {
     check("flip", 4096);
+}
+
+#[test]
+fn vertex_colors_match_mitsuba() {
+    check("colors", 1024);
+}
+
+/// The vertex-colour comparison can fail: the floor's vertex colours replaced by a grey
+/// of about their mean is caught.
+#[test]
+fn the_vertex_color_comparison_catches_a_uniform_colour() {
+    check_caught(
+        "colors",
+        r#"<texture type="mesh_attribute" name="reflectance">
+                <string name="name" value="vertex_color"/>
+            </texture>"#,
+        r#"<rgb name="reflectance" value="0.5"/>"#,
+        "a grey floor",
+    );
 }
 
 /// The flip comparison can fail: the light left unflipped (facing away), the sphere

@@ -88,6 +88,7 @@ impl Cuboid {
             dpdu,
             dpdv,
             uv: Vec2::new((p[a1] + 1.0) * 0.5, (p[a2] + 1.0) * 0.5),
+            color: Vec3::ONE,
             wo: -ray.direction.normalize(),
             instance: 0,
             prim: hit.prim,

@@ -273,6 +273,7 @@ pub(crate) fn swept_sphere_interaction(
         // known here, so this has dp/du's length).
         dpdv: nf.cross(dpdu),
         uv: Vec2::new(u / (2.0 * PI), along as f32),
+        color: Vec3::ONE,
         wo: -ray.direction.normalize(),
         instance: 0,
         prim: hit.prim,

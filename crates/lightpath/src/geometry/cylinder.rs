@@ -115,6 +115,7 @@ impl Cylinder {
                 dpdu: Vec3::new(-2.0 * PI * p.y, 2.0 * PI * p.x, 0.0),
                 dpdv: Vec3::Z,
                 uv: Vec2::new(phi / (2.0 * PI), p.z),
+                color: Vec3::ONE,
                 wo,
                 instance: 0,
                 prim: 0,
@@ -142,6 +143,7 @@ impl Cylinder {
                 // v = φ/2π, as on a disk.
                 dpdv: Vec3::new(-p.y, p.x, 0.0) * (2.0 * PI),
                 uv: Vec2::new(r, phi / (2.0 * PI)),
+                color: Vec3::ONE,
                 wo,
                 instance: 0,
                 prim: hit.prim,

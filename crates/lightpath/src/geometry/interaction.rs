@@ -24,6 +24,8 @@ pub struct SurfaceInteraction {
     pub dpdv: Vec3,
     /// Texture coordinates.
     pub uv: Vec2,
+    /// The vertex colour (a mesh's per-vertex colours interpolated; white elsewhere).
+    pub color: Vec3,
     /// Unit direction towards the ray origin.
     pub wo: Vec3,
     /// Index of the instance that was hit (set by the scene).
@@ -47,10 +49,17 @@ impl SurfaceInteraction {
             dpdu: render_from_object.vector(self.dpdu),
             dpdv: render_from_object.vector(self.dpdv),
             uv: self.uv,
+            color: self.color,
             wo: render_from_object.vector(self.wo).normalize_or_zero(),
             instance: self.instance,
             prim: self.prim,
         }
+    }
+
+    /// Where textures are looked up at this point.
+    #[inline(always)]
+    pub fn tex(&self) -> crate::texture::TexCoord {
+        crate::texture::TexCoord::new(self.uv, self.color)
     }
 
     /// Turns the surface's normals the other way (geometric and shading together).

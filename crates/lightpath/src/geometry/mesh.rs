@@ -79,6 +79,8 @@ pub struct TriangleMesh {
     pub normals: Vec<Vec3>,
     pub uvs: Vec<Vec2>,
     pub indices: Vec<[u32; 3]>,
+    /// Linear RGB per vertex, or empty.
+    pub colors: Vec<Vec3>,
     /// Interpolate vertex normals (when the mesh has them).
     pub smooth: bool,
     pub accel: Accel,
@@ -428,6 +430,12 @@ impl TriangleMesh {
         if !data.uvs.is_empty() && data.uvs.len() != n {
             return Err(format!("{} uvs for {} vertices", data.uvs.len(), n));
         }
+        if !data.colors.is_empty() && data.colors.len() != n {
+            return Err(format!("{} colours for {} vertices", data.colors.len(), n));
+        }
+        if let Some(i) = data.colors.iter().position(|c| !c.is_finite()) {
+            return Err(format!("vertex {i} has a non-finite colour"));
+        }
         // In parallel (a serial pass over a million triangles is a few percent of their
         // BVH's build on two threads, and more with more threads); the first offender
         // is named, as a serial pass would.
@@ -467,6 +475,7 @@ impl TriangleMesh {
             normals: if normals_ok { data.normals } else { Vec::new() },
             uvs: data.uvs,
             indices: data.indices,
+            colors: data.colors,
             smooth,
             accel,
             blocks,
@@ -1251,6 +1260,12 @@ impl TriangleMesh {
         if !dpdv.is_finite() || dpdu.cross(dpdv).length_squared() == 0.0 {
             dpdv = n.cross(dpdu);
         }
+        let color = if self.colors.is_empty() {
+            Vec3::ONE
+        } else {
+            let c = |i: u32| self.colors[i as usize];
+            c(i0) * b0 + c(i1) * b1 + c(i2) * b2
+        };
         SurfaceInteraction {
             p: p.into(),
             p_error: p_error.into(),
@@ -1260,6 +1275,7 @@ impl TriangleMesh {
             dpdu: dpdu.into(),
             dpdv: dpdv.into(),
             uv,
+            color,
             wo: (-unit(Vec3A::from(ray.direction))).into(),
             instance: 0,
             prim: hit.prim,
@@ -1308,6 +1324,7 @@ mod tests {
             normals: vec![],
             uvs: vec![],
             indices,
+            colors: Vec::new(),
         }
     }
 
@@ -1318,6 +1335,7 @@ mod tests {
             normals: vec![],
             uvs: vec![],
             indices: vec![[0, 1, 2]],
+            colors: Vec::new(),
         };
         let mesh = TriangleMesh::new(data, false, AccelKind::Bvh2).unwrap();
         let mut s = RayStats::default();
@@ -1358,6 +1376,7 @@ mod tests {
             normals: vec![],
             uvs: vec![],
             indices: vec![[0, 1, 3]],
+            colors: Vec::new(),
         };
         assert!(TriangleMesh::new(bad_index, true, AccelKind::Bvh2)
             .unwrap_err()
@@ -1367,6 +1386,7 @@ mod tests {
             normals: vec![],
             uvs: vec![],
             indices: vec![[0, 1, 2]],
+            colors: Vec::new(),
         };
         assert!(TriangleMesh::new(nan, true, AccelKind::Bvh2).is_err());
     }
@@ -1496,6 +1516,7 @@ mod tests {
             indices: (0..tris.len() as u32)
                 .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
                 .collect(),
+            colors: Vec::new(),
         }
     }
 
@@ -1506,6 +1527,7 @@ mod tests {
             normals: vec![],
             uvs: vec![],
             indices: vec![],
+            colors: Vec::new(),
         };
         for y in 0..=n {
             for x in 0..=n {
@@ -1617,6 +1639,7 @@ mod tests {
             normals: vec![],
             uvs: vec![],
             indices: vec![],
+            colors: Vec::new(),
         };
         let mesh = TriangleMesh::new(empty, false, AccelKind::Bvh8).unwrap();
         let rays = vec![Ray::new(Vec3::ZERO, Vec3::Z); 20];
@@ -1635,6 +1658,7 @@ mod tests {
             normals: vec![],
             uvs: vec![],
             indices: vec![],
+            colors: Vec::new(),
         };
         for i in 0..3000u32 {
             let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 4.0;
@@ -1715,6 +1739,7 @@ mod tests {
             normals: Vec::new(),
             uvs: vec![Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y],
             indices: vec![[0, 1, 2], [0, 2, 3]],
+            colors: Vec::new(),
         };
         // Row 0 is the top of the image (v = 1).
         let coverage = Image {
@@ -1830,6 +1855,7 @@ mod tests {
             normals: Vec::new(),
             uvs: Vec::new(),
             indices: vec![[0, 1, 2], [0, 2, 3]],
+            colors: Vec::new(),
         };
         for kind in [AccelKind::Bvh8, AccelKind::Bvh2] {
             let mut mesh = TriangleMesh::new(data.clone(), false, kind).unwrap();

@@ -2,9 +2,10 @@
 
 use glam::{Vec2, Vec3};
 
-/// Triangles with optional per-vertex normals and texture coordinates.
+/// Triangles with optional per-vertex normals, texture coordinates and colours.
 ///
-/// `normals` and `uvs` are either empty or as long as `positions`. Triangle ids follow
+/// `normals`, `uvs` and `colors` are each either empty or as long as `positions`.
+/// Colours are linear RGB (a file's 8-bit colours are decoded from sRGB by its reader). Triangle ids follow
 /// the file: faces in file order, a polygon `v0..vk` fan-triangulated into
 /// `(v0, vi, vi+1)`; degenerate triangles are kept so ids stay aligned with other tools.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -13,6 +14,7 @@ pub struct MeshData {
     pub normals: Vec<Vec3>,
     pub uvs: Vec<Vec2>,
     pub indices: Vec<[u32; 3]>,
+    pub colors: Vec<Vec3>,
 }
 
 impl MeshData {

@@ -49,6 +49,7 @@ pub(super) fn z0_interaction(
         dpdu,
         dpdv,
         uv,
+        color: Vec3::ONE,
         wo: -ray.direction.normalize(),
         instance: 0,
         prim: 0,

@@ -108,6 +108,7 @@ impl Sphere {
             dpdu,
             dpdv,
             uv: Vec2::new(phi / (2.0 * PI), theta / PI),
+            color: Vec3::ONE,
             wo: -ray.direction.normalize(),
             instance: 0,
             prim: 0,

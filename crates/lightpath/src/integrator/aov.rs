@@ -79,7 +79,9 @@ impl Aov {
             },
             AovVariable::RawNormals => hit.map_or(Vec3::ZERO, |si| si.shading_n),
             AovVariable::Albedo => hit.map_or(Vec3::ZERO, |si| {
-                scene.material(&si).map_or(Vec3::ZERO, |m| m.albedo(si.uv))
+                scene
+                    .material(&si)
+                    .map_or(Vec3::ZERO, |m| m.albedo(si.tex()))
             }),
             AovVariable::Distance => {
                 hit.map_or(Vec3::ZERO, |si| Vec3::splat(si.t * ray.direction.length()))
@@ -154,7 +156,9 @@ pub struct FirstHit {
 /// The first hit of a camera ray, `None` for a miss.
 pub fn first_hit(scene: &Scene, ray: &Ray) -> Option<FirstHit> {
     let si = scene.intersect(ray)?;
-    let albedo = scene.material(&si).map_or(Vec3::ZERO, |m| m.albedo(si.uv));
+    let albedo = scene
+        .material(&si)
+        .map_or(Vec3::ZERO, |m| m.albedo(si.tex()));
     Some(FirstHit {
         albedo,
         normal: si.shading_n,

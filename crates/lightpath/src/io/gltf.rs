@@ -13,14 +13,16 @@
 //! - **Meshes.** Each primitive of a mesh becomes one triangle-mesh shape, built once
 //!   (one BLAS) and shared by every node that uses the mesh; each such node places it as
 //!   an instance with the primitive's material. Instances appear in depth-first node
-//!   order, one per primitive. `POSITION` is required; `NORMAL` (smooth shading) and
-//!   `TEXCOORD_0` are optional; indices may be u8/u16/u32 or absent (non-indexed).
+//!   order, one per primitive. `POSITION` is required; `NORMAL` (smooth shading),
+//!   `TEXCOORD_0` and `COLOR_0` (RGB or RGBA, float or normalized u8/u16; it multiplies
+//!   the base colour, its alpha is not read) are optional; indices may be u8/u16/u32 or
+//!   absent (non-indexed).
 //!   Only `TRIANGLES` primitives are rendered; other modes are skipped with a warning.
 //!   glTF's texture origin is the top-left corner (v down) and ours the bottom-left, so
-//!   `v` becomes `1 − v`. Tangents, vertex colours, skins, morph targets and animations
+//!   `v` becomes `1 − v`. Tangents, `COLOR_1` and above, skins, morph targets and animations
 //!   are ignored (the static bind pose is rendered); sparse accessors are an error.
 //! - **Materials** (metallic-roughness) become our `principled` material: base colour =
-//!   `baseColorFactor.rgb` × base colour texture (sRGB), roughness =
+//!   `baseColorFactor.rgb` × base colour texture (sRGB) × `COLOR_0`, roughness =
 //!   `roughnessFactor` × the metallic-roughness texture's G channel, metallic =
 //!   `metallicFactor` × its B channel (linear), `specular` 0.5 (a 4 % dielectric
 //!   reflectance at normal incidence, as glTF's F0 = 0.04). A `normalTexture` (linear,
@@ -249,6 +251,9 @@ enum AlphaCut {
     Hidden,
 }
 
+/// A glTF material as we render it: the BSDF and the emission, if any.
+type BuiltMaterial = (Arc<Material>, Option<Emission>);
+
 /// How an image's 8/16-bit values are decoded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 enum ColorSpace {
@@ -268,7 +273,8 @@ struct Loader<'a> {
     /// Textures by (texture index, texel derivation), shared by the materials using them.
     textures: HashMap<(usize, TexelKey), Arc<Texture>>,
     /// Materials and emissions by material index (`None`: the default material).
-    materials: HashMap<Option<usize>, (Arc<Material>, Option<Emission>)>,
+    /// Materials by (glTF material, whether the primitive has vertex colours).
+    materials: HashMap<(Option<usize>, bool), BuiltMaterial>,
     /// Shapes by (mesh, primitive); `None` for skipped primitives.
     shapes: HashMap<(usize, usize), Option<Arc<Shape>>>,
     options: LoadOptions,
@@ -571,9 +577,11 @@ impl<'a> Loader<'a> {
         Ok(texture)
     }
 
-    /// The material (and emission) of a glTF material, built once.
-    fn material(&mut self, m: ::gltf::Material) -> Result<(Arc<Material>, Option<Emission>)> {
-        if let Some(done) = self.materials.get(&m.index()) {
+    /// The material (and emission) of a glTF material, built once; with
+    /// `vertex_colors` (a primitive with `COLOR_0`), its base colour is multiplied by them.
+    fn material(&mut self, m: ::gltf::Material, vertex_colors: bool) -> Result<BuiltMaterial> {
+        let key = (m.index(), vertex_colors);
+        if let Some(done) = self.materials.get(&key) {
             return Ok(done.clone());
         }
         let pbr = m.pbr_metallic_roughness();
@@ -581,6 +589,11 @@ impl<'a> Loader<'a> {
         let base_color = match pbr.base_color_texture() {
             Some(info) => self.texture(info.texture(), info.tex_coord(), Texel::Scaled(factor))?,
             None => Arc::new(Texture::Constant(factor)),
+        };
+        let base_color = if vertex_colors {
+            Arc::new(Texture::VertexColor(base_color))
+        } else {
+            base_color
         };
         let (metallic_factor, roughness_factor) = (pbr.metallic_factor(), pbr.roughness_factor());
         let (metallic, roughness) = match pbr.metallic_roughness_texture() {
@@ -626,7 +639,7 @@ impl<'a> Loader<'a> {
             None
         };
         let done = (material, emission);
-        self.materials.insert(m.index(), done.clone());
+        self.materials.insert(key, done.clone());
         Ok(done)
     }
 
@@ -773,7 +786,39 @@ impl<'a> Loader<'a> {
             }
             None => Vec::new(),
         };
-        for (name, len) in [("NORMAL", normals.len()), ("TEXCOORD_0", uvs.len())] {
+        // COLOR_0 multiplies the base colour (linear RGB; RGBA's alpha is not read).
+        let colors: Vec<Vec3> = match primitive.get(&Semantic::Colors(0)) {
+            Some(a) => {
+                let dims = if a.dimensions() == Dimensions::Vec4 {
+                    Dimensions::Vec4
+                } else {
+                    Dimensions::Vec3
+                };
+                let v = self.read_accessor(
+                    &a,
+                    &format!("{what} COLOR_0"),
+                    dims,
+                    &[DataType::F32, DataType::U8, DataType::U16],
+                )?;
+                let colors: Vec<Vec3> = v
+                    .chunks_exact(dims.multiplicity())
+                    .map(|c| Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32))
+                    .collect();
+                if let Some(i) = colors.iter().position(|c| !c.is_finite()) {
+                    return Err(self.error(format!(
+                        "{what}: COLOR_0 {i} is not finite ({:?})",
+                        colors[i]
+                    )));
+                }
+                colors
+            }
+            None => Vec::new(),
+        };
+        for (name, len) in [
+            ("NORMAL", normals.len()),
+            ("TEXCOORD_0", uvs.len()),
+            ("COLOR_0", colors.len()),
+        ] {
             if len != 0 && len != n {
                 return Err(self.error(format!(
                     "{what}: {name} has {len} elements but POSITION has {n}"
@@ -814,6 +859,7 @@ impl<'a> Loader<'a> {
             normals,
             uvs,
             indices: flat.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
+            colors,
         })
     }
 
@@ -880,7 +926,8 @@ impl<'a> Loader<'a> {
                     let Some(shape) = self.primitive_shape(&mesh, &primitive)? else {
                         continue;
                     };
-                    let (material, emission) = self.material(primitive.material())?;
+                    let colored = primitive.get(&::gltf::Semantic::Colors(0)).is_some();
+                    let (material, emission) = self.material(primitive.material(), colored)?;
                     let mut instance = Instance::new(shape, render_from_object);
                     instance.material = Some(material);
                     instance.emission = emission;

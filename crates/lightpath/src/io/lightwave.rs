@@ -540,6 +540,10 @@ impl Builder {
         let texture =
             match node.type_name.as_deref() {
                 Some("constant") => Texture::Constant(node.vec3("value")?.unwrap_or(Vec3::ONE)),
+                // A mesh's vertex colours (PLY `red`/`green`/`blue`), times `scale`.
+                Some("vertexcolor") => Texture::VertexColor(Arc::new(Texture::Constant(
+                    node.vec3("scale")?.unwrap_or(Vec3::ONE),
+                ))),
                 Some("checkerboard") => {
                     let scale = match node.floats("scale")? {
                         None => Vec2::ONE,
@@ -627,7 +631,12 @@ impl Builder {
                         exposure,
                     })
                 }
-                _ => return Err(unknown_type(node, &["constant", "image", "checkerboard"])),
+                _ => {
+                    return Err(unknown_type(
+                        node,
+                        &["constant", "image", "checkerboard", "vertexcolor"],
+                    ))
+                }
             };
         node.check_all_used()?;
         let texture = Arc::new(texture);
@@ -1484,6 +1493,28 @@ pub fn default_accel(aov: Option<AovVariable>) -> AccelKind {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `<texture type="vertexcolor" scale=".."/>`: the vertex colour times the scale.
+    #[test]
+    fn vertex_colour_texture() {
+        let xml = r#"<integrator type="direct"><scene>
+            <camera type="perspective"/>
+            <instance>
+                <shape type="sphere"/>
+                <bsdf type="diffuse"><texture name="albedo" type="vertexcolor" scale="0.5,1,2"/></bsdf>
+            </instance>
+        </scene><sampler type="independent" count="1"/></integrator>"#;
+        let loaded =
+            crate::io::load_scene_str(xml, Path::new("scene.xml"), &LoadOptions::default())
+                .unwrap();
+        let Some(Material::Diffuse(d)) = loaded.scene.instances[0].material.as_deref() else {
+            panic!("not diffuse")
+        };
+        let at = crate::texture::TexCoord::new(Vec2::ZERO, Vec3::new(0.2, 0.4, 0.8));
+        assert_eq!(d.albedo.eval(at), Vec3::new(0.1, 0.4, 1.6));
+        // Shapes without vertex colours are white.
+        assert_eq!(d.albedo.eval(Vec2::ZERO), Vec3::new(0.5, 1.0, 2.0));
+    }
 
     /// Loads a scene from XML text and renders it.
     fn render_xml(xml: &str) -> crate::film::Image {

@@ -91,7 +91,12 @@
 //! - Float parameters (`opacity`, `weight`, and the Disney BSDFs' parameters other than
 //!   `base_color`) read a colour texture as Mitsuba's `eval_1` does: an `rgb` constant
 //!   as the mean of its channels, a `bitmap` as its luminance, a `checkerboard` as each
-//!   colour's value (in the cell where its colour lookup shows that colour).
+//!   colour's value (in the cell where its colour lookup shows that colour); a
+//!   `mesh_attribute` by the vertex colour's first channel (Mitsuba: its luminance).
+//! - `mesh_attribute` reads `vertex_color` only (a PLY file's `r`/`g`/`b` or
+//!   `red`/`green`/`blue`), times `scale`; 8-bit colours are decoded from sRGB to [0, 1]
+//!   (Mitsuba 3.9.1 keeps them as 0-255); a shape without vertex colours reads white.
+//!   Face attributes and other names are an error.
 //! - Texture coordinates follow Mitsuba: a `bitmap` has image row 0 at v = 0 (after its
 //!   `to_uv` transform), and OBJ meshes flip v unless `flip_tex_coords` is false.
 
@@ -371,6 +376,8 @@ fn grey_texture(t: &Arc<Texture>) -> Arc<Texture> {
             color1: mean(c.color1),
             ..c.clone()
         }),
+        // A one-value slot reads the first channel of a vertex colour.
+        Texture::VertexColor(_) => return t.clone(),
         // (Only made of grey textures, by `roughness`.)
         Texture::Sqrt(inner) => {
             let g = grey_texture(inner);
@@ -492,7 +499,7 @@ const SHAPES: &[&str] = &[
     "csg",
 ];
 const EMITTERS: &[&str] = &["area", "point", "spot", "directional", "constant", "envmap"];
-const TEXTURES: &[&str] = &["bitmap", "checkerboard"];
+const TEXTURES: &[&str] = &["bitmap", "checkerboard", "mesh_attribute"];
 const BSDFS: &[&str] = &[
     "diffuse",
     "conductor",
@@ -542,6 +549,7 @@ fn masked_shape(shape: &Shape, mask: AlphaMask, accel: crate::accel::AccelKind) 
                 normals: Vec::new(),
                 uvs: vec![Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y],
                 indices: vec![[0, 1, 2], [0, 2, 3]],
+                colors: Vec::new(),
             };
             TriangleMesh::new(data, false, accel).ok()?
         }
@@ -1623,6 +1631,20 @@ impl Builder {
                     color1: node.vec3("color1")?.unwrap_or(Vec3::splat(0.2)),
                 })
             }
+            Some("mesh_attribute") => {
+                self.check_children(node, &[])?;
+                let name = node
+                    .string("name")
+                    .ok_or_else(|| node.error("mesh_attribute needs a `name`"))?;
+                if name != "vertex_color" {
+                    return Err(node.error(format!(
+                        "mesh_attribute `{name}`: only `vertex_color` (a PLY file's vertex \
+                         colours) is supported"
+                    )));
+                }
+                let scale = node.float_or("scale", 1.0)?;
+                Texture::VertexColor(Arc::new(Texture::Constant(Vec3::splat(scale))))
+            }
             _ => return Err(unknown_type(node, TEXTURES)),
         };
         if kind.is_some() {
@@ -2177,6 +2199,47 @@ mod tests {
         crate::io::load_scene_str(xml, Path::new("m.xml"), &options)
     }
 
+    /// `mesh_attribute` reads the vertex colours (times `scale`); other attributes, and
+    /// a missing name, are errors naming the line.
+    #[test]
+    fn mesh_attribute_textures() {
+        let with = |texture: &str| {
+            scene_with(&format!(
+                r#"<shape type="rectangle"><bsdf type="diffuse">
+                {texture}</bsdf></shape>"#
+            ))
+        };
+        let loaded = load(
+            &with(
+                r#"<texture type="mesh_attribute" name="reflectance"><string name="name" value="vertex_color"/><float name="scale" value="0.5"/></texture>"#,
+            ),
+            &[],
+        )
+        .unwrap();
+        let Material::Diffuse(d) = inner(loaded.scene.instances[0].material.as_deref().unwrap())
+        else {
+            panic!("not diffuse")
+        };
+        let at = crate::texture::TexCoord::new(Vec2::ZERO, Vec3::new(0.2, 0.4, 0.8));
+        assert_eq!(d.albedo.eval(at), Vec3::new(0.1, 0.2, 0.4));
+        for (texture, needle) in [
+            (
+                r#"<texture type="mesh_attribute" name="reflectance"><string name="name" value="face_color"/></texture>"#,
+                "only `vertex_color`",
+            ),
+            (
+                r#"<texture type="mesh_attribute" name="reflectance"/>"#,
+                "needs a `name`",
+            ),
+        ] {
+            let e = load(&with(texture), &[]).unwrap_err().to_string();
+            assert!(
+                e.contains(needle) && e.contains("m.xml:8"),
+                "{texture}: {e}"
+            );
+        }
+    }
+
     /// The BSDF inside Mitsuba's one-sidedness.
     fn inner(m: &Material) -> &Material {
         match m {
@@ -2396,6 +2459,7 @@ mod tests {
             dpdu: Vec3::X,
             dpdv: Vec3::Y,
             uv: Vec2::splat(0.5),
+            color: Vec3::ONE,
             wo: up,
             instance: 0,
             prim: 0,

@@ -10,6 +10,7 @@
 //! `usemtl` are skipped): a scene file that uses an OBJ mesh assigns its own material.
 //! [`load_scene`] reads the OBJ as a whole scene, with its MTL materials (see there).
 //!
+//! Vertex colours (`v x y z r g b`, linear RGB) are kept when every vertex has one.
 //! Normals are kept only when every vertex has one; texture coordinates are kept
 //! when any object has them, vertices without one get `(0, 0)`. Texture
 //! coordinates are returned as written in the file (no `v` flip: OBJ's `v` runs up the
@@ -124,6 +125,9 @@ fn merge_meshes(path: &Path, meshes: &[&tobj::Mesh]) -> Result<MeshData> {
 
     let keep_normals = !meshes.is_empty() && meshes.iter().all(|m| has_normals(m));
     let keep_uvs = meshes.iter().any(|m| has_uvs(m));
+    // Vertex colours (`v x y z r g b`, linear), kept when every vertex has one.
+    let has_colors = |m: &tobj::Mesh| m.vertex_color.len() == m.positions.len();
+    let keep_colors = !meshes.is_empty() && meshes.iter().all(|m| has_colors(m));
     if !keep_normals && meshes.iter().any(|m| !m.normals.is_empty()) {
         log::warn!(
             "{}: some vertices have no normal; all normals dropped",
@@ -147,6 +151,7 @@ fn merge_meshes(path: &Path, meshes: &[&tobj::Mesh]) -> Result<MeshData> {
         normals: Vec::with_capacity(if keep_normals { total_vertices } else { 0 }),
         uvs: Vec::with_capacity(if keep_uvs { total_vertices } else { 0 }),
         indices: Vec::with_capacity(total_triangles),
+        colors: Vec::with_capacity(if keep_colors { total_vertices } else { 0 }),
     };
 
     for m in meshes {
@@ -168,6 +173,18 @@ fn merge_meshes(path: &Path, meshes: &[&tobj::Mesh]) -> Result<MeshData> {
                     .chunks_exact(3)
                     .map(|n| Vec3::new(n[0], n[1], n[2])),
             );
+        }
+        if keep_colors {
+            for (i, c) in m.vertex_color.chunks_exact(3).enumerate() {
+                let c = Vec3::new(c[0], c[1], c[2]);
+                if !c.is_finite() {
+                    return Err(Error::mesh(
+                        path,
+                        format!("vertex {} has a non-finite colour {c}", base + i),
+                    ));
+                }
+                mesh.colors.push(c);
+            }
         }
         if keep_uvs {
             if has_uvs(m) {
@@ -675,6 +692,29 @@ f 6 6 7
         assert_eq!(mesh.positions[5], Vec3::splat(5.0));
         assert!(mesh.normals.is_empty());
         assert!(mesh.uvs.is_empty());
+    }
+
+    /// `v x y z r g b` vertex colours are kept when every vertex has one.
+    #[test]
+    fn vertex_colours() {
+        let text = "\
+v 0 0 0 1 0 0
+v 1 0 0 0 1 0
+v 0 1 0 0 0 0.5
+v 1 1 0 0.25 0.25 0.25
+f 1 2 3
+f 2 4 3
+";
+        let mesh = load_text(text).expect("load");
+        assert_eq!(mesh.colors.len(), mesh.positions.len());
+        let at = |p: Vec3| mesh.colors[mesh.positions.iter().position(|&q| q == p).unwrap()];
+        assert_eq!(at(Vec3::Y), Vec3::new(0.0, 0.0, 0.5));
+        assert_eq!(at(Vec3::new(1.0, 1.0, 0.0)), Vec3::splat(0.25));
+        // A face using a vertex without a colour among coloured ones: `tobj` refuses the
+        // file, and the error names the line.
+        let mixed = text.replace("v 1 1 0 0.25 0.25 0.25", "v 1 1 0");
+        let message = load_text(&mixed).unwrap_err().to_string();
+        assert!(message.contains("line 6"), "{message}");
     }
 
     #[test]

@@ -13,7 +13,10 @@
 //! - vertex properties `x`, `y`, `z` (required), `nx`, `ny`, `nz` (used when all
 //!   three are present) and texture coordinates named `u`/`v`, `s`/`t`,
 //!   `texture_u`/`texture_v` or `texture_s`/`texture_t` (first pair found, in
-//!   that order);
+//!   that order), and vertex colours `red`/`green`/`blue`, `r`/`g`/`b` or
+//!   `diffuse_red`/`diffuse_green`/`diffuse_blue` (floats as linear RGB; unsigned
+//!   integers, as scanners and MeshLab write them, as sRGB over the type's range,
+//!   decoded to linear);
 //! - a face list property `vertex_indices` or `vertex_index`;
 //! - any other elements and properties, which are skipped.
 //!
@@ -428,7 +431,14 @@ impl Body for AsciiBody<'_> {
 const X: usize = 0;
 const NX: usize = 3;
 const U: usize = 6;
-const SLOTS: usize = 8;
+const C: usize = 8;
+const SLOTS: usize = 11;
+
+const COLOR_NAMES: [[&str; 3]; 3] = [
+    ["red", "green", "blue"],
+    ["r", "g", "b"],
+    ["diffuse_red", "diffuse_green", "diffuse_blue"],
+];
 
 const UV_NAMES: [(&str, &str); 4] = [
     ("u", "v"),
@@ -436,6 +446,24 @@ const UV_NAMES: [(&str, &str); 4] = [
     ("texture_u", "texture_v"),
     ("texture_s", "texture_t"),
 ];
+
+/// How a vertex colour channel's stored value becomes linear RGB.
+#[derive(Debug, Clone, Copy)]
+enum ColorDecode {
+    /// Floats (and signed integers): the value itself.
+    Linear,
+    /// Unsigned integers: sRGB-encoded over `0..=max`.
+    Srgb(f64),
+}
+
+impl ColorDecode {
+    fn linear(self, value: f64) -> f32 {
+        match self {
+            ColorDecode::Linear => value as f32,
+            ColorDecode::Srgb(max) => crate::io::image::srgb_to_linear((value / max) as f32),
+        }
+    }
+}
 
 /// Decodes the body into a mesh. `body_len` (bytes) bounds up-front reservations:
 /// every vertex and face row takes at least one byte, so a header that lies about
@@ -477,6 +505,29 @@ fn read_body<B: Body>(
         slots[v] = Some(U + 1);
     }
     let has_uvs = uv_props.is_some();
+    // Vertex colours, and how each channel's stored value becomes linear RGB.
+    let color_props = COLOR_NAMES.iter().find_map(|names| {
+        names
+            .iter()
+            .map(|n| vertex.scalar_property(n))
+            .collect::<Option<Vec<_>>>()
+    });
+    let mut color_decode = [ColorDecode::Linear; 3];
+    if let Some(props) = &color_props {
+        for (c, &i) in props.iter().enumerate() {
+            slots[i] = Some(C + c);
+            let PropertyType::Scalar(ty) = vertex.properties[i].ty else {
+                unreachable!("scalar_property returns scalars")
+            };
+            color_decode[c] = match ty {
+                ScalarType::U8 | ScalarType::U16 | ScalarType::U32 => {
+                    ColorDecode::Srgb(ty.range().1)
+                }
+                _ => ColorDecode::Linear,
+            };
+        }
+    }
+    let has_colors = color_props.is_some();
 
     let face = header
         .elements
@@ -505,6 +556,7 @@ fn read_body<B: Body>(
         normals: Vec::with_capacity(if has_normals { cap(vertex.count) } else { 0 }),
         uvs: Vec::with_capacity(if has_uvs { cap(vertex.count) } else { 0 }),
         indices: Vec::with_capacity(cap(face.count)),
+        colors: Vec::with_capacity(if has_colors { cap(vertex.count) } else { 0 }),
     };
     let vertex_count = vertex.count;
     let mut short_faces = 0usize;
@@ -523,29 +575,26 @@ fn read_body<B: Body>(
                     };
                     result.map_err(|e| format!("vertex {v}, property `{}`: {e}", property.name))?;
                 }
-                let p = Vec3::new(values[0] as f32, values[1] as f32, values[2] as f32);
-                if !p.is_finite() {
-                    return Err(format!(
-                        "vertex {v} has a non-finite position ({}, {}, {})",
-                        values[0], values[1], values[2]
-                    ));
-                }
-                mesh.positions.push(p);
-                if has_normals {
-                    let n = Vec3::new(
-                        values[NX] as f32,
-                        values[NX + 1] as f32,
-                        values[NX + 2] as f32,
-                    );
-                    if !n.is_finite() {
-                        return Err(format!(
-                            "vertex {v} has a non-finite normal ({}, {}, {})",
-                            values[NX],
-                            values[NX + 1],
-                            values[NX + 2]
-                        ));
+                // Three slots from `at` as a vector (each value through `decode`), or an
+                // error naming the vertex when one is not finite.
+                let vector = |what: &str, at: usize, decode: &dyn Fn(usize, f64) -> f32| {
+                    let value =
+                        Vec3::from_array(std::array::from_fn(|k| decode(k, values[at + k])));
+                    if value.is_finite() {
+                        Ok(value)
+                    } else {
+                        Err(format!(
+                            "vertex {v} has a non-finite {what} ({}, {}, {})",
+                            values[at],
+                            values[at + 1],
+                            values[at + 2]
+                        ))
                     }
-                    mesh.normals.push(n);
+                };
+                let float = |_: usize, x: f64| x as f32;
+                mesh.positions.push(vector("position", X, &float)?);
+                if has_normals {
+                    mesh.normals.push(vector("normal", NX, &float)?);
                 }
                 if has_uvs {
                     let uv = Vec2::new(values[U] as f32, values[U + 1] as f32);
@@ -557,6 +606,10 @@ fn read_body<B: Body>(
                         ));
                     }
                     mesh.uvs.push(uv);
+                }
+                if has_colors {
+                    let decode = |k: usize, x: f64| color_decode[k].linear(x);
+                    mesh.colors.push(vector("colour", C, &decode)?);
                 }
             }
         } else if std::ptr::eq(element, face) {
@@ -690,6 +743,7 @@ end_header
                 Vec2::new(0.0, 1.0),
             ],
             indices: vec![[0, 1, 2], [0, 2, 3], [1, 1, 2]],
+            colors: Vec::new(),
         }
     }
 
@@ -775,6 +829,61 @@ end_header
         let message = mesh_error(&bytes);
         assert!(message.contains("face 1"), "{message}");
         assert!(message.contains("unexpected end of file"), "{message}");
+    }
+
+    /// Vertex colours under each name: floats as they are (linear), 8- and 16-bit
+    /// unsigned integers over their range, decoded from sRGB; a NaN colour is an error.
+    #[test]
+    fn vertex_colours() {
+        let srgb = crate::io::image::srgb_to_linear;
+        for names in COLOR_NAMES {
+            for (ty, values, expected) in [
+                ("float", "0.25 1 0", Vec3::new(0.25, 1.0, 0.0)),
+                (
+                    "uchar",
+                    "128 255 0",
+                    Vec3::new(srgb(128.0 / 255.0), 1.0, 0.0),
+                ),
+                (
+                    "ushort",
+                    "65535 0 6554",
+                    Vec3::new(1.0, 0.0, srgb(6554.0 / 65535.0)),
+                ),
+            ] {
+                let [r, g, b] = names;
+                let text = format!(
+                    "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n\
+                     property float y\nproperty float z\nproperty {ty} {r}\n\
+                     property {ty} {g}\nproperty {ty} {b}\nelement face 1\n\
+                     property list uchar uint vertex_indices\nend_header\n\
+                     0 0 0 {values}\n1 0 0 {values}\n0 1 0 {values}\n3 0 1 2\n"
+                );
+                let mesh = load_bytes(text.as_bytes()).expect("load");
+                assert_eq!(mesh.colors.len(), 3, "{names:?} {ty}");
+                assert!(
+                    (mesh.colors[2] - expected).abs().max_element() < 1e-6,
+                    "{names:?} {ty}: {} against {expected}",
+                    mesh.colors[2]
+                );
+            }
+        }
+        // Two of three channels are not a colour.
+        let partial = ASCII_QUAD
+            .replace("property float u\n", "property float red\n")
+            .replace("property float v\n", "property float green\n");
+        assert!(load_bytes(partial.as_bytes())
+            .expect("load")
+            .colors
+            .is_empty());
+        let nan = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n\
+                   property float y\nproperty float z\nproperty float r\nproperty float g\n\
+                   property float b\nelement face 1\nproperty list uchar uint vertex_indices\n\
+                   end_header\n0 0 0 1 1 1\n1 0 0 nan 1 1\n0 1 0 1 1 1\n3 0 1 2\n";
+        let message = mesh_error(nan.as_bytes());
+        assert!(
+            message.contains("vertex 1 has a non-finite colour"),
+            "{message}"
+        );
     }
 
     #[test]

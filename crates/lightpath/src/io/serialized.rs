@@ -251,6 +251,7 @@ fn parse(data: &[u8], index: usize) -> std::result::Result<MeshData, String> {
         normals,
         uvs,
         indices,
+        colors: Vec::new(),
     })
 }
 

@@ -39,13 +39,18 @@ impl Emission {
     /// Radiance leaving the surface at `si` in the unit direction `w`.
     #[inline]
     pub fn eval(&self, si: &SurfaceInteraction, w: Vec3) -> Vec3 {
-        self.eval_at(si.shading_n, si.uv, w)
+        self.eval_at(si.shading_n, si.tex(), w)
     }
 
     /// Radiance leaving a point with unit shading normal `shading_n` and texture
-    /// coordinates `uv` in the unit direction `w`.
+    /// coordinates `uv` (or a [`crate::texture::TexCoord`]) in the unit direction `w`.
     #[inline]
-    pub fn eval_at(&self, shading_n: Vec3, uv: Vec2, w: Vec3) -> Vec3 {
+    pub fn eval_at(
+        &self,
+        shading_n: Vec3,
+        uv: impl Into<crate::texture::TexCoord>,
+        w: Vec3,
+    ) -> Vec3 {
         if shading_n.dot(w) > 0.0 {
             self.radiance.eval(uv)
         } else {
@@ -238,8 +243,9 @@ impl AreaLight {
             placed: true,
         };
         if let Shape::TriangleMesh(m) = &*light.shape {
-            // Masked meshes take the general path, which weighs each point's coverage.
-            if m.alpha().is_none() {
+            // Masked meshes take the general path, which weighs each point's coverage;
+            // so does radiance that reads vertex colours (from each point's interaction).
+            if m.alpha().is_none() && !light.emission.radiance.uses_vertex_colors() {
                 light.flat_mesh = FlatMeshEmitter::new(m, &render_from_object, &light);
             }
         }
@@ -655,28 +661,11 @@ mod tests {
     #[test]
     fn alpha_masked_emitters_emit_where_rays_find_them() {
         use crate::film::Image;
-        use crate::geometry::{AlphaMask, AlphaTest, MeshData, TriangleMesh};
+        use crate::geometry::{AlphaMask, AlphaTest, TriangleMesh};
         use crate::texture::{BorderMode, FilterMode, ImageTexture};
-        let t = Transform::rotate(Vec3::new(1.0, -1.0, 0.5), 20.0)
-            .unwrap()
-            .then(&Transform::translate(Vec3::new(-0.3, 0.2, 0.0)));
-        // A receiver above the quad, facing it.
-        let (p, n_r) = (
-            Vec3::new(0.35, 0.6, 1.2),
-            Vec3::new(0.1, -0.2, -1.0).normalize(),
-        );
         for test in [AlphaTest::Cutoff(0.5), AlphaTest::Stochastic] {
-            let quad = MeshData {
-                positions: vec![
-                    Vec3::new(0.0, 0.0, 0.0),
-                    Vec3::new(1.0, 0.0, 0.0),
-                    Vec3::new(1.0, 1.0, 0.0),
-                    Vec3::new(0.0, 1.0, 0.0),
-                ],
-                normals: Vec::new(),
-                uvs: vec![Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y],
-                indices: vec![[0, 1, 2], [0, 2, 3]],
-            };
+            let mut quad = unit_quad();
+            quad.uvs = vec![Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y];
             let mut mesh = TriangleMesh::new(quad, false, crate::accel::AccelKind::Bvh8).unwrap();
             mesh.set_alpha(AlphaMask {
                 coverage: Arc::new(Texture::Image(ImageTexture {
@@ -692,36 +681,111 @@ mod tests {
                 test,
             });
             let shape = Shape::TriangleMesh(Arc::new(mesh));
-            let l = light(shape.clone(), t);
-            let mut b = crate::scene::SceneBuilder::new();
-            let id = b.add_shape(shape);
-            b.add_instance(id, t);
-            let scene = b.build();
-            let mut rng = Pcg32::new(11, 4);
-            let n = 400_000;
-            // Next-event estimation: radiance / pdf times the receiver's cosine.
-            let mut nee = 0.0f64;
-            for _ in 0..n {
-                let u = Vec2::new(rng.next_f32(), rng.next_f32());
-                if let Some(ls) = l.sample(p, rng.next_f32(), u) {
-                    nee += (ls.weight.x * n_r.dot(ls.wi).max(0.0)) as f64;
-                }
-            }
-            // Rays uniform in the cone around the quad's bounding sphere.
-            let (cone_pdf, mut direction) = cone_towards(p, scene.bounds());
-            let mut rays = 0.0f64;
-            for _ in 0..n {
-                let w = direction(&mut rng);
-                if let Some(si) = scene.intersect(&crate::math::Ray::new(p, w)) {
-                    let le = l.emission.eval(&si, -w).x;
-                    rays += (le * n_r.dot(w).max(0.0) / cone_pdf) as f64;
-                }
-            }
-            let (nee, rays) = (nee / n as f64, rays / n as f64);
+            let l = light(shape.clone(), quad_placement());
+            let (nee, rays) = nee_and_rays(&l, shape, 11);
+            let (nee, rays) = (nee.x, rays.x);
             assert!(rays > 0.05, "{test:?}: the quad is lit and seen ({rays})");
             assert!(
                 (nee - rays).abs() < 0.02 * rays,
                 "{test:?}: next-event estimation {nee} against rays {rays}"
+            );
+        }
+    }
+
+    /// The placement of the quad emitters of the tests below (`unit_quad`, turned and
+    /// moved).
+    fn quad_placement() -> Transform {
+        Transform::rotate(Vec3::new(1.0, -1.0, 0.5), 20.0)
+            .unwrap()
+            .then(&Transform::translate(Vec3::new(-0.3, 0.2, 0.0)))
+    }
+
+    /// The unit square of the xy plane as two triangles.
+    fn unit_quad() -> crate::geometry::MeshData {
+        crate::geometry::MeshData {
+            positions: vec![
+                Vec3::new(0.0, 0.0, 0.0),
+                Vec3::new(1.0, 0.0, 0.0),
+                Vec3::new(1.0, 1.0, 0.0),
+                Vec3::new(0.0, 1.0, 0.0),
+            ],
+            indices: vec![[0, 1, 2], [0, 2, 3]],
+            ..Default::default()
+        }
+    }
+
+    /// The irradiance at a receiver above the quad placed by [`quad_placement`], facing
+    /// it, from light `l` on `shape`: by next-event estimation (radiance / pdf times the
+    /// receiver's cosine) and by rays uniform in the cone around the shape's bounding
+    /// sphere that read the emission where they hit; per channel, 400,000 samples each.
+    fn nee_and_rays(l: &AreaLight, shape: Shape, seed: u64) -> (glam::DVec3, glam::DVec3) {
+        let (p, n_r) = (
+            Vec3::new(0.35, 0.6, 1.2),
+            Vec3::new(0.1, -0.2, -1.0).normalize(),
+        );
+        let mut b = crate::scene::SceneBuilder::new();
+        let id = b.add_shape(shape);
+        b.add_instance(id, quad_placement());
+        let scene = b.build();
+        let mut rng = Pcg32::new(seed, 4);
+        let n = 400_000;
+        let mut nee = glam::DVec3::ZERO;
+        for _ in 0..n {
+            let u = Vec2::new(rng.next_f32(), rng.next_f32());
+            if let Some(ls) = l.sample(p, rng.next_f32(), u) {
+                nee += (ls.weight * n_r.dot(ls.wi).max(0.0)).as_dvec3();
+            }
+        }
+        let (cone_pdf, mut direction) = cone_towards(p, scene.bounds());
+        let mut rays = glam::DVec3::ZERO;
+        for _ in 0..n {
+            let w = direction(&mut rng);
+            if let Some(si) = scene.intersect(&crate::math::Ray::new(p, w)) {
+                let le = l.emission.eval(&si, -w);
+                rays += (le * (n_r.dot(w).max(0.0) / cone_pdf)).as_dvec3();
+            }
+        }
+        (nee / n as f64, rays / n as f64)
+    }
+
+    /// An emitter whose radiance is its mesh's vertex colours: next-event estimation (the
+    /// general path, which reads each sampled point's colour) agrees with rays that find
+    /// the mesh and read the colour at their hit, channel by channel.
+    #[test]
+    fn vertex_coloured_emitters_emit_their_colours() {
+        use crate::geometry::TriangleMesh;
+        let mut quad = unit_quad();
+        // Red at one corner only, green along one edge, blue everywhere.
+        quad.colors = vec![
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(1.0, 0.0, 1.0),
+            Vec3::new(0.0, 1.0, 1.0),
+            Vec3::new(0.0, 1.0, 1.0),
+        ];
+        let mesh = TriangleMesh::new(quad, false, crate::accel::AccelKind::Bvh8).unwrap();
+        let shape = Shape::TriangleMesh(Arc::new(mesh));
+        let radiance = Arc::new(Texture::VertexColor(Arc::new(Texture::Constant(
+            Vec3::splat(2.0),
+        ))));
+        let l = AreaLight::new(
+            Arc::new(shape.clone()),
+            quad_placement(),
+            Emission { radiance },
+        );
+        assert!(
+            l.flat_mesh.is_none(),
+            "vertex colours take the general path"
+        );
+        let (nee, rays) = nee_and_rays(&l, shape, 12);
+        // Blue is uniform; red (one corner) is the smallest share and green about half.
+        assert!(
+            rays.x > 0.0 && rays.x < 0.5 * rays.y && rays.y < rays.z,
+            "{rays}"
+        );
+        for c in 0..3 {
+            assert!(
+                (nee[c] - rays[c]).abs() < 0.02 * rays[c],
+                "channel {c}: next-event estimation {nee} against rays {rays}"
             );
         }
     }

@@ -13,7 +13,7 @@
 //! ```
 
 use super::{scalar, valid_pdf, BsdfSample, Material};
-use crate::texture::Texture;
+use crate::texture::{TexCoord, Texture};
 use glam::{Vec2, Vec3};
 use std::sync::Arc;
 
@@ -29,7 +29,7 @@ const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
 
 impl Blend {
     #[inline]
-    fn w(&self, uv: Vec2) -> f32 {
+    fn w(&self, uv: TexCoord) -> f32 {
         let w = scalar(&self.weight, uv);
         if w.is_nan() {
             0.0
@@ -38,7 +38,7 @@ impl Blend {
         }
     }
 
-    pub fn eval(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> Vec3 {
+    pub fn eval(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> Vec3 {
         let w = self.w(uv);
         let mut f = Vec3::ZERO;
         if w < 1.0 {
@@ -50,7 +50,7 @@ impl Blend {
         f
     }
 
-    pub fn pdf(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> f32 {
+    pub fn pdf(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> f32 {
         let w = self.w(uv);
         let mut p = 0.0;
         if w < 1.0 {
@@ -62,7 +62,7 @@ impl Blend {
         p
     }
 
-    pub fn sample(&self, uv: Vec2, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+    pub fn sample(&self, uv: TexCoord, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         let w = self.w(uv);
         let (child, prob, u_child) = if u_lobe < 1.0 - w {
             (&self.first, 1.0 - w, u_lobe / (1.0 - w))

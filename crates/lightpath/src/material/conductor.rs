@@ -15,7 +15,7 @@
 
 use super::fresnel::fresnel_conductor;
 use super::BsdfSample;
-use crate::texture::Texture;
+use crate::texture::{TexCoord, Texture};
 use glam::{Vec2, Vec3};
 use std::sync::Arc;
 
@@ -44,17 +44,17 @@ pub struct Conductor {
 impl Conductor {
     /// A delta lobe: zero for any given pair of directions.
     #[inline]
-    pub fn eval(&self, _uv: Vec2, _wo: Vec3, _wi: Vec3) -> Vec3 {
+    pub fn eval(&self, _uv: TexCoord, _wo: Vec3, _wi: Vec3) -> Vec3 {
         Vec3::ZERO
     }
 
     #[inline]
-    pub fn pdf(&self, _uv: Vec2, _wo: Vec3, _wi: Vec3) -> f32 {
+    pub fn pdf(&self, _uv: TexCoord, _wo: Vec3, _wi: Vec3) -> f32 {
         0.0
     }
 
     #[inline]
-    pub fn sample(&self, uv: Vec2, wo: Vec3, _u_lobe: f32, _u: Vec2) -> Option<BsdfSample> {
+    pub fn sample(&self, uv: TexCoord, wo: Vec3, _u_lobe: f32, _u: Vec2) -> Option<BsdfSample> {
         if wo.z == 0.0 {
             return None;
         }

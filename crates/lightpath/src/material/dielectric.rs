@@ -14,7 +14,7 @@
 
 use super::fresnel::fresnel_dielectric_cos;
 use super::BsdfSample;
-use crate::texture::Texture;
+use crate::texture::{TexCoord, Texture};
 use glam::{Vec2, Vec3};
 use std::sync::Arc;
 
@@ -28,16 +28,16 @@ pub struct Dielectric {
 
 impl Dielectric {
     #[inline]
-    pub fn eval(&self, _uv: Vec2, _wo: Vec3, _wi: Vec3) -> Vec3 {
+    pub fn eval(&self, _uv: TexCoord, _wo: Vec3, _wi: Vec3) -> Vec3 {
         Vec3::ZERO
     }
 
     #[inline]
-    pub fn pdf(&self, _uv: Vec2, _wo: Vec3, _wi: Vec3) -> f32 {
+    pub fn pdf(&self, _uv: TexCoord, _wo: Vec3, _wi: Vec3) -> f32 {
         0.0
     }
 
-    pub fn sample(&self, uv: Vec2, wo: Vec3, u_lobe: f32, _u: Vec2) -> Option<BsdfSample> {
+    pub fn sample(&self, uv: TexCoord, wo: Vec3, u_lobe: f32, _u: Vec2) -> Option<BsdfSample> {
         if wo.z == 0.0 {
             return None;
         }

@@ -10,7 +10,7 @@
 use super::BsdfSample;
 use crate::math::INV_PI;
 use crate::sampling::warp;
-use crate::texture::Texture;
+use crate::texture::{TexCoord, Texture};
 use glam::{Vec2, Vec3};
 use std::sync::Arc;
 
@@ -22,7 +22,7 @@ pub struct Diffuse {
 impl Diffuse {
     /// f·|cos θi| in the local frame.
     #[inline]
-    pub fn eval(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> Vec3 {
+    pub fn eval(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> Vec3 {
         if wo.z * wi.z <= 0.0 {
             return Vec3::ZERO;
         }
@@ -30,7 +30,7 @@ impl Diffuse {
     }
 
     #[inline]
-    pub fn pdf(&self, _uv: Vec2, wo: Vec3, wi: Vec3) -> f32 {
+    pub fn pdf(&self, _uv: TexCoord, wo: Vec3, wi: Vec3) -> f32 {
         if wo.z * wi.z <= 0.0 {
             return 0.0;
         }
@@ -39,7 +39,7 @@ impl Diffuse {
 
     /// Cosine-weighted sampling on wo's side; the weight is the albedo.
     #[inline]
-    pub fn sample(&self, uv: Vec2, wo: Vec3, _u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+    pub fn sample(&self, uv: TexCoord, wo: Vec3, _u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         let mut wi = warp::square_to_cosine_hemisphere(u);
         if wo.z < 0.0 {
             wi.z = -wi.z;
@@ -67,7 +67,7 @@ mod tests {
         let d = Diffuse {
             albedo: Arc::new(Texture::Constant(Vec3::new(0.2, 0.5, 0.8))),
         };
-        let uv = Vec2::ZERO;
+        let uv = TexCoord::from(Vec2::ZERO);
         let mut rng = Pcg32::new(4, 4);
         let wo = Vec3::new(0.3, 0.1, 0.9).normalize();
         for _ in 0..1000 {

@@ -57,7 +57,7 @@ use super::microfacet::{reflect, refract, Microfacet};
 use super::{scalar, BsdfSample};
 use crate::math::{INV_PI, PI};
 use crate::sampling::warp;
-use crate::texture::Texture;
+use crate::texture::{TexCoord, Texture};
 use glam::{FloatExt, Vec2, Vec3};
 use std::sync::Arc;
 
@@ -211,7 +211,7 @@ impl DisneyPrincipled {
         2.0 / (1.0 - (0.08 * specular).sqrt()) - 1.0
     }
 
-    fn params(&self, uv: Vec2) -> Params {
+    fn params(&self, uv: TexCoord) -> Params {
         let roughness = scalar(&self.roughness, uv);
         let anisotropic = scalar(&self.anisotropic, uv);
         let metallic = scalar(&self.metallic, uv);
@@ -356,15 +356,15 @@ impl DisneyPrincipled {
         (value, pdf)
     }
 
-    pub fn eval(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> Vec3 {
+    pub fn eval(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> Vec3 {
         self.eval_pdf(&self.params(uv), wo, wi).0
     }
 
-    pub fn pdf(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> f32 {
+    pub fn pdf(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> f32 {
         self.eval_pdf(&self.params(uv), wo, wi).1
     }
 
-    pub fn sample(&self, uv: Vec2, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+    pub fn sample(&self, uv: TexCoord, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         let p = self.params(uv);
         let cos_o = wo.z;
         let front = cos_o > 0.0;

@@ -42,7 +42,7 @@ use super::microfacet::{reflect, Microfacet};
 use super::{scalar, BsdfSample};
 use crate::math::INV_PI;
 use crate::sampling::warp;
-use crate::texture::Texture;
+use crate::texture::{TexCoord, Texture};
 use glam::{Vec2, Vec3};
 use std::sync::Arc;
 
@@ -86,7 +86,7 @@ struct Params {
 type Choice = [f32; 4];
 
 impl DisneyThin {
-    fn params(&self, uv: Vec2) -> Params {
+    fn params(&self, uv: TexCoord) -> Params {
         Params {
             base: self.base_color.eval(uv),
             roughness: scalar(&self.roughness, uv),
@@ -185,15 +185,15 @@ impl DisneyThin {
         (value, pdf)
     }
 
-    pub fn eval(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> Vec3 {
+    pub fn eval(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> Vec3 {
         self.eval_pdf(&self.params(uv), wo, wi).0
     }
 
-    pub fn pdf(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> f32 {
+    pub fn pdf(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> f32 {
         self.eval_pdf(&self.params(uv), wo, wi).1
     }
 
-    pub fn sample(&self, uv: Vec2, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+    pub fn sample(&self, uv: TexCoord, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         if wo.z == 0.0 {
             return None;
         }

@@ -31,7 +31,7 @@
 
 use super::fresnel::fresnel_dielectric;
 use super::{valid_pdf, BsdfSample};
-use crate::texture::Texture;
+use crate::texture::{TexCoord, Texture};
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 use std::sync::Arc;
@@ -199,7 +199,7 @@ impl Hair {
 
     /// σa at `uv`.
     #[inline]
-    fn sigma_a(&self, uv: Vec2) -> Vec3 {
+    fn sigma_a(&self, uv: TexCoord) -> Vec3 {
         match &self.absorption {
             HairAbsorption::SigmaA(s) => *s,
             HairAbsorption::Color(t) => sigma_a_from_color(t.eval(uv), self.beta_n),
@@ -208,7 +208,7 @@ impl Hair {
 
     /// The fibre's colour, for albedo buffers: the given colour, or e^(-2σa) (two
     /// diameters of absorption).
-    pub fn albedo(&self, uv: Vec2) -> Vec3 {
+    pub fn albedo(&self, uv: TexCoord) -> Vec3 {
         match &self.absorption {
             HairAbsorption::Color(t) => t.eval(uv),
             HairAbsorption::SigmaA(s) => (-2.0 * *s).exp(),
@@ -216,7 +216,7 @@ impl Hair {
     }
 
     /// The scattering f·|cos θi| (the fibre's scattering function S) for local `wo`, `wi`.
-    pub fn eval(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> Vec3 {
+    pub fn eval(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> Vec3 {
         let o = FibreDirection::new(wo);
         let geo = self.geometry(&o);
         let ap = self.attenuation(&o, &geo, self.sigma_a(uv));
@@ -230,7 +230,7 @@ impl Hair {
     }
 
     /// The density of `sample` choosing local `wi`.
-    pub fn pdf(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> f32 {
+    pub fn pdf(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> f32 {
         let o = FibreDirection::new(wo);
         let geo = self.geometry(&o);
         let lobe = lobe_pdf(&self.attenuation(&o, &geo, self.sigma_a(uv)));
@@ -262,7 +262,7 @@ impl Hair {
 
     /// Samples a lobe in proportion to its attenuation (`u_lobe`, reused for the
     /// azimuth), then its longitudinal and azimuthal terms exactly (`u`).
-    pub fn sample(&self, uv: Vec2, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+    pub fn sample(&self, uv: TexCoord, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         let o = FibreDirection::new(wo);
         let geo = self.geometry(&o);
         let ap = self.attenuation(&o, &geo, self.sigma_a(uv));
@@ -570,7 +570,9 @@ mod tests {
             let n = 2000;
             for _ in 0..n {
                 let u = Vec2::new(rng.next_f32(), rng.next_f32());
-                let bs = hair.sample(Vec2::ZERO, wo, rng.next_f32(), u).unwrap();
+                let bs = hair
+                    .sample(Vec2::ZERO.into(), wo, rng.next_f32(), u)
+                    .unwrap();
                 mean += bs.wi;
             }
             let mean = mean.normalize();
@@ -578,8 +580,8 @@ mod tests {
             // And f is far larger there than at the azimuth mirrored the other way.
             let wrong = Vec3::new(wo.x, -wo.y, wo.z).normalize();
             let (at, off) = (
-                hair.eval(Vec2::ZERO, wo, mirror).x,
-                hair.eval(Vec2::ZERO, wo, wrong).x,
+                hair.eval(Vec2::ZERO.into(), wo, mirror).x,
+                hair.eval(Vec2::ZERO.into(), wo, wrong).x,
             );
             assert!(at > 100.0 * off, "{at} {off}");
         }

@@ -83,7 +83,7 @@ pub use twosided::TwoSided;
 
 use crate::geometry::SurfaceInteraction;
 use crate::math::Frame;
-use crate::texture::Texture;
+use crate::texture::{TexCoord, Texture};
 use glam::{Vec2, Vec3, Vec3A};
 
 /// A sampled direction.
@@ -195,7 +195,7 @@ pub(crate) fn terminator_shadowing(cos_n: f32, cos_w: f32) -> f32 {
 
 /// A scalar parameter from a texture: its first channel (lightwave's `scalar`).
 #[inline]
-pub(crate) fn scalar(t: &Texture, uv: Vec2) -> f32 {
+pub(crate) fn scalar(t: &Texture, uv: TexCoord) -> f32 {
     t.eval(uv).x
 }
 
@@ -228,7 +228,7 @@ pub(crate) fn mirror_to_upper(wo: Vec3, wi: Vec3) -> (Vec3, Vec3) {
 pub struct Bsdf<'a> {
     pub material: &'a Material,
     pub frame: Frame,
-    pub uv: Vec2,
+    pub uv: TexCoord,
     /// The outgoing direction in the local frame.
     pub wo: Vec3,
     /// Under a bump map: the unperturbed shading normal in the local (perturbed) frame.
@@ -260,7 +260,7 @@ impl<'a> Bsdf<'a> {
         Bsdf {
             material,
             frame,
-            uv: si.uv,
+            uv: si.tex(),
             wo: frame.to_local(wo),
             guard: None,
             shadowing_cos: 1.0,
@@ -276,7 +276,7 @@ impl<'a> Bsdf<'a> {
             Bsdf {
                 material: &b.inner,
                 frame,
-                uv: si.uv,
+                uv: si.tex(),
                 wo: frame.to_local(wo),
                 guard: Some(guard),
                 shadowing_cos: if b.shadowing { guard.z } else { 1.0 },
@@ -431,7 +431,8 @@ impl Material {
 
     /// f·|cos θi| in the local shading frame.
     #[inline(always)]
-    pub fn eval_local(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> Vec3 {
+    pub fn eval_local(&self, uv: impl Into<TexCoord>, wo: Vec3, wi: Vec3) -> Vec3 {
+        let uv = uv.into();
         // Diffuse, also one-sided (Mitsuba's), inline at the caller (the common case);
         // the rest behind a call.
         match self {
@@ -445,7 +446,7 @@ impl Material {
     }
 
     #[inline(never)]
-    fn eval_local_other(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> Vec3 {
+    fn eval_local_other(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> Vec3 {
         match self {
             Material::Diffuse(m) => m.eval(uv, wo, wi),
             Material::Conductor(m) => m.eval(uv, wo, wi),
@@ -469,7 +470,8 @@ impl Material {
 
     /// The sampling density in the local shading frame.
     #[inline(always)]
-    pub fn pdf_local(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> f32 {
+    pub fn pdf_local(&self, uv: impl Into<TexCoord>, wo: Vec3, wi: Vec3) -> f32 {
+        let uv = uv.into();
         // Diffuse, also one-sided, inline at the caller; the rest behind a call.
         match self {
             Material::Diffuse(m) => m.pdf(uv, wo, wi),
@@ -482,7 +484,7 @@ impl Material {
     }
 
     #[inline(never)]
-    fn pdf_local_other(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> f32 {
+    fn pdf_local_other(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> f32 {
         match self {
             Material::Diffuse(m) => m.pdf(uv, wo, wi),
             Material::Conductor(m) => m.pdf(uv, wo, wi),
@@ -506,7 +508,14 @@ impl Material {
 
     /// Samples in the local shading frame (`wi` is local too).
     #[inline(always)]
-    pub fn sample_local(&self, uv: Vec2, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+    pub fn sample_local(
+        &self,
+        uv: impl Into<TexCoord>,
+        wo: Vec3,
+        u_lobe: f32,
+        u: Vec2,
+    ) -> Option<BsdfSample> {
+        let uv = uv.into();
         // Diffuse, also one-sided, inline at the caller; the rest behind a call.
         match self {
             Material::Diffuse(m) => m.sample(uv, wo, u_lobe, u),
@@ -519,7 +528,13 @@ impl Material {
     }
 
     #[inline(never)]
-    fn sample_local_other(&self, uv: Vec2, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+    fn sample_local_other(
+        &self,
+        uv: TexCoord,
+        wo: Vec3,
+        u_lobe: f32,
+        u: Vec2,
+    ) -> Option<BsdfSample> {
         match self {
             Material::Diffuse(m) => m.sample(uv, wo, u_lobe, u),
             Material::Conductor(m) => m.sample(uv, wo, u_lobe, u),
@@ -541,12 +556,13 @@ impl Material {
         }
     }
 
-    /// The material's colour at `uv`, as denoisers' albedo buffers want it: the
+    /// The material's colour at `uv` (a `Vec2` or a [`TexCoord`]), as denoisers' albedo buffers want it: the
     /// diffuse or base colour (diffuse, plastic, principled), the reflectance tint of
     /// conductors, the transmittance tint of dielectrics; two-sided and normal-mapped
     /// materials give their inner material's, a blend mixes its two by its weight. Not
     /// a directional reflectance: no Fresnel, no roughness.
-    pub fn albedo(&self, uv: Vec2) -> Vec3 {
+    pub fn albedo(&self, uv: impl Into<TexCoord>) -> Vec3 {
+        let uv = uv.into();
         match self {
             Material::Diffuse(m) => m.albedo.eval(uv),
             Material::Conductor(m) => m.reflectance.eval(uv),

@@ -18,7 +18,7 @@
 
 use super::{BsdfSample, Material};
 use crate::math::Frame;
-use crate::texture::Texture;
+use crate::texture::{TexCoord, Texture};
 use glam::{Vec2, Vec3};
 use std::sync::Arc;
 
@@ -47,7 +47,7 @@ impl NormalMap {
     }
 
     /// The perturbed frame in local shading coordinates, seen from the local `wo`.
-    pub fn frame(&self, uv: Vec2, wo: Vec3) -> Frame {
+    pub fn frame(&self, uv: TexCoord, wo: Vec3) -> Frame {
         let mut n = (2.0 * self.normal.eval(uv) - Vec3::ONE).normalize_or_zero();
         if n == Vec3::ZERO || !n.is_finite() {
             return Frame {
@@ -72,7 +72,7 @@ impl NormalMap {
         }
     }
 
-    pub fn eval(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> Vec3 {
+    pub fn eval(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> Vec3 {
         let f = self.frame(uv, wo);
         let wi_local = f.to_local(wi);
         if !same_side(wi, wi_local) {
@@ -81,7 +81,7 @@ impl NormalMap {
         self.inner.eval_local(uv, f.to_local(wo), wi_local) * self.shadowing(&f, wi)
     }
 
-    pub fn pdf(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> f32 {
+    pub fn pdf(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> f32 {
         let f = self.frame(uv, wo);
         let wi_local = f.to_local(wi);
         if !same_side(wi, wi_local) {
@@ -90,7 +90,7 @@ impl NormalMap {
         self.inner.pdf_local(uv, f.to_local(wo), wi_local)
     }
 
-    pub fn sample(&self, uv: Vec2, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+    pub fn sample(&self, uv: TexCoord, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         let f = self.frame(uv, wo);
         let mut bs = self.inner.sample_local(uv, f.to_local(wo), u_lobe, u)?;
         let wi_local = bs.wi;

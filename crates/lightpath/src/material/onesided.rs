@@ -12,6 +12,7 @@
 //! ```
 
 use super::{BsdfSample, Material};
+use crate::texture::TexCoord;
 use glam::{Vec2, Vec3};
 use std::sync::Arc;
 
@@ -21,15 +22,15 @@ pub struct OneSided {
 }
 
 impl OneSided {
-    pub fn eval(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> Vec3 {
+    pub fn eval(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> Vec3 {
         Self::eval_with(wo, wi, || self.inner.eval_local(uv, wo, wi))
     }
 
-    pub fn pdf(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> f32 {
+    pub fn pdf(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> f32 {
         Self::pdf_with(wo, wi, || self.inner.pdf_local(uv, wo, wi))
     }
 
-    pub fn sample(&self, uv: Vec2, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+    pub fn sample(&self, uv: TexCoord, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         Self::sample_with(wo, || self.inner.sample_local(uv, wo, u_lobe, u))
     }
 

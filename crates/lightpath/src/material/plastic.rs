@@ -26,7 +26,7 @@ use super::fresnel::{fresnel_dielectric, fresnel_diffuse_reflectance};
 use super::{valid_pdf, BsdfSample};
 use crate::math::INV_PI;
 use crate::sampling::warp;
-use crate::texture::Texture;
+use crate::texture::{TexCoord, Texture};
 use glam::{Vec2, Vec3};
 use std::sync::Arc;
 
@@ -77,7 +77,7 @@ impl Plastic {
 
     /// The diffuse base's colour after the internal reflections.
     #[inline]
-    fn base(&self, uv: Vec2) -> Vec3 {
+    fn base(&self, uv: TexCoord) -> Vec3 {
         let rho = self.diffuse.eval(uv);
         if self.nonlinear {
             rho / (Vec3::ONE - rho * self.fdr_int)
@@ -87,7 +87,7 @@ impl Plastic {
     }
 
     /// The non-delta (diffuse) part: f·cos θi.
-    pub fn eval(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> Vec3 {
+    pub fn eval(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> Vec3 {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return Vec3::ZERO;
         }
@@ -97,7 +97,7 @@ impl Plastic {
     }
 
     /// Density of the diffuse lobe's directions (the specular lobe is a delta).
-    pub fn pdf(&self, _uv: Vec2, wo: Vec3, wi: Vec3) -> f32 {
+    pub fn pdf(&self, _uv: TexCoord, wo: Vec3, wi: Vec3) -> f32 {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return 0.0;
         }
@@ -105,7 +105,7 @@ impl Plastic {
         (1.0 - self.prob_specular(f_o)) * wi.z * INV_PI
     }
 
-    pub fn sample(&self, uv: Vec2, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+    pub fn sample(&self, uv: TexCoord, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         if wo.z <= 0.0 {
             return None;
         }

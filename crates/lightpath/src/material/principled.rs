@@ -28,7 +28,7 @@ use super::microfacet::{reflect, reflection, roughness_to_alpha, Microfacet};
 use super::{mirror_to_upper, scalar, BsdfSample};
 use crate::math::INV_PI;
 use crate::sampling::warp;
-use crate::texture::Texture;
+use crate::texture::{TexCoord, Texture};
 use glam::{Vec2, Vec3};
 use std::sync::Arc;
 
@@ -50,7 +50,7 @@ struct Lobes {
 }
 
 impl Principled {
-    fn lobes(&self, uv: Vec2, cos_o: f32) -> Lobes {
+    fn lobes(&self, uv: TexCoord, cos_o: f32) -> Lobes {
         let base = self.base_color.eval(uv);
         let metallic = scalar(&self.metallic, uv);
         let specular = scalar(&self.specular, uv);
@@ -78,7 +78,7 @@ impl Principled {
         (value, pdf)
     }
 
-    pub fn eval(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> Vec3 {
+    pub fn eval(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> Vec3 {
         if wo.z * wi.z <= 0.0 {
             return Vec3::ZERO;
         }
@@ -86,7 +86,7 @@ impl Principled {
         self.eval_pdf(&self.lobes(uv, wo.z), wo, wi).0
     }
 
-    pub fn pdf(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> f32 {
+    pub fn pdf(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> f32 {
         if wo.z * wi.z <= 0.0 {
             return 0.0;
         }
@@ -94,7 +94,7 @@ impl Principled {
         self.eval_pdf(&self.lobes(uv, wo.z), wo, wi).1
     }
 
-    pub fn sample(&self, uv: Vec2, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+    pub fn sample(&self, uv: TexCoord, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         if wo.z == 0.0 {
             return None;
         }

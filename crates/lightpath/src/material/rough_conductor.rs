@@ -18,7 +18,7 @@
 use super::conductor::{conductor_fresnel, ComplexIor};
 use super::microfacet::{reflect, reflection, roughness_to_alpha, Distribution, Microfacet};
 use super::{mirror_to_upper, scalar, valid_pdf, BsdfSample};
-use crate::texture::Texture;
+use crate::texture::{TexCoord, Texture};
 use glam::{Vec2, Vec3};
 use std::sync::Arc;
 
@@ -47,7 +47,7 @@ impl RoughConductor {
 
     /// The microfacet distribution at `uv`.
     #[inline]
-    pub fn ggx(&self, uv: Vec2) -> Microfacet {
+    pub fn ggx(&self, uv: TexCoord) -> Microfacet {
         let au = roughness_to_alpha(scalar(&self.roughness_u, uv));
         let av = if Arc::ptr_eq(&self.roughness_u, &self.roughness_v) {
             au
@@ -57,7 +57,7 @@ impl RoughConductor {
         Microfacet::new(au, av).with_distribution(self.distribution)
     }
 
-    pub fn eval(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> Vec3 {
+    pub fn eval(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> Vec3 {
         if wo.z * wi.z <= 0.0 {
             return Vec3::ZERO;
         }
@@ -70,7 +70,7 @@ impl RoughConductor {
         }
     }
 
-    pub fn pdf(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> f32 {
+    pub fn pdf(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> f32 {
         if wo.z * wi.z <= 0.0 {
             return 0.0;
         }
@@ -78,7 +78,7 @@ impl RoughConductor {
         reflection(&self.ggx(uv), wo, wi).map_or(0.0, |(_, _, pdf)| pdf)
     }
 
-    pub fn sample(&self, uv: Vec2, wo: Vec3, _u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+    pub fn sample(&self, uv: TexCoord, wo: Vec3, _u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         if wo.z == 0.0 {
             return None;
         }

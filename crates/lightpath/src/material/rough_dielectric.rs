@@ -24,7 +24,7 @@
 use super::fresnel::fresnel_dielectric_cos;
 use super::microfacet::{reflect, refract, roughness_to_alpha, Distribution, Microfacet};
 use super::{mirror_to_upper, scalar, valid_pdf, BsdfSample};
-use crate::texture::Texture;
+use crate::texture::{TexCoord, Texture};
 use glam::{Vec2, Vec3};
 use std::sync::Arc;
 
@@ -53,7 +53,7 @@ impl RoughDielectric {
     }
 
     #[inline]
-    fn ggx(&self, uv: Vec2) -> Microfacet {
+    fn ggx(&self, uv: TexCoord) -> Microfacet {
         Microfacet::isotropic(roughness_to_alpha(scalar(&self.roughness, uv)))
             .with_distribution(self.distribution)
     }
@@ -113,7 +113,7 @@ impl RoughDielectric {
         })
     }
 
-    pub fn eval(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> Vec3 {
+    pub fn eval(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> Vec3 {
         if self.is_pass_through() || wo.z == 0.0 {
             return Vec3::ZERO;
         }
@@ -126,7 +126,7 @@ impl RoughDielectric {
         }
     }
 
-    pub fn pdf(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> f32 {
+    pub fn pdf(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> f32 {
         if self.is_pass_through() || wo.z == 0.0 {
             return 0.0;
         }
@@ -135,7 +135,7 @@ impl RoughDielectric {
         Self::lobe(&self.ggx(uv), eta, wo, wi).map_or(0.0, |l| l.pdf)
     }
 
-    pub fn sample(&self, uv: Vec2, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+    pub fn sample(&self, uv: TexCoord, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         if wo.z == 0.0 {
             return None;
         }

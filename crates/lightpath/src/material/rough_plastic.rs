@@ -48,7 +48,7 @@ use super::microfacet::{
 use super::BsdfSample;
 use crate::math::INV_PI;
 use crate::sampling::warp;
-use crate::texture::Texture;
+use crate::texture::{TexCoord, Texture};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::sync::{Arc, Mutex};
@@ -142,7 +142,7 @@ impl RoughPlastic {
 
     /// The diffuse base's colour after the internal reflections.
     #[inline]
-    fn base(&self, uv: Vec2) -> Vec3 {
+    fn base(&self, uv: TexCoord) -> Vec3 {
         let rho = self.diffuse.eval(uv);
         let r = self.coating.internal_reflectance;
         if self.nonlinear {
@@ -153,7 +153,7 @@ impl RoughPlastic {
     }
 
     /// f·cos θi of both lobes, and the density of sampling `wi`.
-    fn eval_pdf(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+    fn eval_pdf(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return (Vec3::ZERO, 0.0);
         }
@@ -174,15 +174,15 @@ impl RoughPlastic {
         (specular + diffuse, pdf)
     }
 
-    pub fn eval(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> Vec3 {
+    pub fn eval(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> Vec3 {
         self.eval_pdf(uv, wo, wi).0
     }
 
-    pub fn pdf(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> f32 {
+    pub fn pdf(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> f32 {
         self.eval_pdf(uv, wo, wi).1
     }
 
-    pub fn sample(&self, uv: Vec2, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+    pub fn sample(&self, uv: TexCoord, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         if wo.z <= 0.0 {
             return None;
         }

@@ -15,6 +15,7 @@
 //! ```
 
 use super::{mirror_z, BsdfSample, Material};
+use crate::texture::TexCoord;
 use glam::{Vec2, Vec3};
 use std::sync::Arc;
 
@@ -38,7 +39,7 @@ impl TwoSided {
         self.back.as_deref().unwrap_or(&self.inner)
     }
 
-    pub fn eval(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> Vec3 {
+    pub fn eval(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> Vec3 {
         if wo.z < 0.0 {
             self.back().eval_local(uv, mirror_z(wo), mirror_z(wi))
         } else {
@@ -46,7 +47,7 @@ impl TwoSided {
         }
     }
 
-    pub fn pdf(&self, uv: Vec2, wo: Vec3, wi: Vec3) -> f32 {
+    pub fn pdf(&self, uv: TexCoord, wo: Vec3, wi: Vec3) -> f32 {
         if wo.z < 0.0 {
             self.back().pdf_local(uv, mirror_z(wo), mirror_z(wi))
         } else {
@@ -54,7 +55,7 @@ impl TwoSided {
         }
     }
 
-    pub fn sample(&self, uv: Vec2, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+    pub fn sample(&self, uv: TexCoord, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         if wo.z < 0.0 {
             let mut bs = self.back().sample_local(uv, mirror_z(wo), u_lobe, u)?;
             bs.wi = mirror_z(bs.wi);

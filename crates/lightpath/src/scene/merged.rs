@@ -20,7 +20,7 @@ const MAX_MERGED_TRIANGLES: usize = 1 << 16;
 /// One render-space mesh made of several instances' meshes.
 ///
 /// Meshes that carry different attributes (vertex normals, texture coordinates,
-/// smoothing) are merged too: `mesh` holds every triangle for intersection, and each set
+/// vertex colours, smoothing) are merged too: `mesh` holds every triangle for intersection, and each set
 /// of attributes keeps a mesh of its own (`parts`) that builds the interactions of its
 /// triangles, so a ray walks one tree however the scene's meshes were written. A part's
 /// triangles have the same render-space corners as in `mesh`, so a hit's distance and
@@ -52,7 +52,7 @@ impl MergedMesh {
                 *uses.entry(Arc::as_ptr(m)).or_default() += 1;
             }
         }
-        let mut groups: HashMap<(bool, bool, bool), Vec<u32>> = HashMap::new();
+        let mut groups: HashMap<(bool, bool, bool, bool), Vec<u32>> = HashMap::new();
         for (i, inst) in instances.iter().enumerate() {
             let Shape::TriangleMesh(m) = &*inst.shape else {
                 continue;
@@ -70,6 +70,7 @@ impl MergedMesh {
                 m.smooth && !m.normals.is_empty(),
                 !m.uvs.is_empty(),
                 m.smooth,
+                !m.colors.is_empty(),
             );
             groups.entry(key).or_default().push(i as u32);
         }
@@ -84,7 +85,7 @@ impl MergedMesh {
         let (mut part, mut part_prim, mut instance, mut prim) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for key in keys {
-            let (with_normals, with_uvs, smooth) = key;
+            let (with_normals, with_uvs, smooth, with_colors) = key;
             let mut data = MeshData::default();
             let mut flipped = Vec::new();
             for &i in &groups[&key] {
@@ -102,6 +103,9 @@ impl MergedMesh {
                 }
                 if with_uvs {
                     data.uvs.extend_from_slice(&m.uvs);
+                }
+                if with_colors {
+                    data.colors.extend_from_slice(&m.colors);
                 }
                 // A mirroring transform reverses the winding: its triangles keep their
                 // corners (and so the default texture parameterisation) and are marked,
@@ -335,6 +339,7 @@ mod tests {
                 normals: m.normals.clone(),
                 uvs: m.uvs.clone(),
                 indices: m.indices.clone(),
+                colors: Vec::new(),
             };
             let mesh = TriangleMesh::new(data, smooth, crate::accel::AccelKind::Bvh2).unwrap();
             let id = b.add_shape(Shape::TriangleMesh(Arc::new(mesh)));

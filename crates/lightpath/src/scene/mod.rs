@@ -630,6 +630,7 @@ mod tests {
                 normals: vec![],
                 uvs: vec![],
                 indices: vec![[0, 1, 2]],
+                colors: Vec::new(),
             },
             false,
             crate::accel::AccelKind::Bvh2,

@@ -4,6 +4,7 @@
 //! <texture name="albedo" type="constant" value="0.1,0.3,0.7"/>
 //! <texture name="albedo" type="image" filename="wood.png" border="repeat" filter="bilinear" exposure="1"/>
 //! <texture name="albedo" type="checkerboard" scale="16,8" color0="0.1" color1="0.9"/>
+//! <texture name="albedo" type="vertexcolor"/>
 //! ```
 
 mod checkerboard;
@@ -26,6 +27,37 @@ pub enum Texture {
     /// The square root of another texture's value, channel by channel (negative values
     /// give 0): a Mitsuba microfacet `alpha` texture read as our roughness √α.
     Sqrt(Arc<Texture>),
+    /// Another texture's value times the surface's vertex colour ([`TexCoord::color`]:
+    /// the colours a mesh file gives its vertices, interpolated over each triangle;
+    /// white on shapes and meshes without them).
+    VertexColor(Arc<Texture>),
+}
+
+/// Where a texture is looked up: the surface's texture coordinates and its vertex colour
+/// (a mesh's per-vertex colours interpolated at the hit; white where there are none).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TexCoord {
+    pub uv: Vec2,
+    pub color: Vec3,
+}
+
+impl TexCoord {
+    /// A lookup at `uv` on a surface of vertex colour `color`.
+    #[inline(always)]
+    pub fn new(uv: Vec2, color: Vec3) -> Self {
+        TexCoord { uv, color }
+    }
+}
+
+impl From<Vec2> for TexCoord {
+    /// A lookup at `uv` on a surface without vertex colours (white).
+    #[inline(always)]
+    fn from(uv: Vec2) -> Self {
+        TexCoord {
+            uv,
+            color: Vec3::ONE,
+        }
+    }
 }
 
 /// A texture whose lookups go through an affine map of the texture coordinates.
@@ -36,25 +68,40 @@ pub struct TransformedTexture {
 }
 
 impl Texture {
-    /// The colour at texture coordinates `uv`.
+    /// The colour at `at`: texture coordinates (a `Vec2`, on a surface without vertex
+    /// colours) or a [`TexCoord`].
     #[inline(always)]
-    pub fn eval(&self, uv: Vec2) -> Vec3 {
+    pub fn eval(&self, at: impl Into<TexCoord>) -> Vec3 {
         // Constants inline at the caller; the other kinds (and the recursion of
         // transformed textures) stay behind a call.
         match self {
             Texture::Constant(c) => *c,
-            _ => self.eval_varying(uv),
+            _ => self.eval_varying(at.into()),
         }
     }
 
     #[inline(never)]
-    fn eval_varying(&self, uv: Vec2) -> Vec3 {
+    fn eval_varying(&self, at: TexCoord) -> Vec3 {
         match self {
             Texture::Constant(c) => *c,
-            Texture::Image(t) => t.eval(uv),
-            Texture::Checkerboard(t) => t.eval(uv),
-            Texture::Transformed(t) => t.texture.eval(t.to_uv.transform_point2(uv)),
-            Texture::Sqrt(t) => sqrt_or_zero(t.eval(uv)),
+            Texture::Image(t) => t.eval(at.uv),
+            Texture::Checkerboard(t) => t.eval(at.uv),
+            Texture::Transformed(t) => t.texture.eval(TexCoord {
+                uv: t.to_uv.transform_point2(at.uv),
+                ..at
+            }),
+            Texture::Sqrt(t) => sqrt_or_zero(t.eval(at)),
+            Texture::VertexColor(t) => t.eval(at) * at.color,
+        }
+    }
+
+    /// Whether the texture reads the surface's vertex colours.
+    pub fn uses_vertex_colors(&self) -> bool {
+        match self {
+            Texture::VertexColor(_) => true,
+            Texture::Transformed(t) => t.texture.uses_vertex_colors(),
+            Texture::Sqrt(t) => t.uses_vertex_colors(),
+            Texture::Constant(_) | Texture::Image(_) | Texture::Checkerboard(_) => false,
         }
     }
 
@@ -65,6 +112,9 @@ impl Texture {
     pub fn luminance_gradient(&self, uv: Vec2) -> Vec2 {
         match self {
             Texture::Constant(_) | Texture::Checkerboard(_) => Vec2::ZERO,
+            // Vertex colours vary over a triangle but not with its texture coordinates:
+            // the other texture's gradient (on white).
+            Texture::VertexColor(t) => t.luminance_gradient(uv),
             Texture::Image(t) => t.luminance_gradient(uv),
             Texture::Transformed(t) => {
                 // d/duv f(A·uv + b) = Aᵀ ∇f.
@@ -94,6 +144,8 @@ impl Texture {
             Texture::Transformed(t) => t.texture.average(),
             // An upper bound (Jensen's inequality), equal for constants.
             Texture::Sqrt(t) => sqrt_or_zero(t.average()),
+            // Vertex colours are unknown here: white, an upper bound for colours in [0, 1].
+            Texture::VertexColor(t) => t.average(),
         }
     }
 }

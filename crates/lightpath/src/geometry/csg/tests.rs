@@ -29,6 +29,7 @@ fn octahedron_data() -> MeshData {
             [3, 1, 5],
             [0, 3, 5],
         ],
+        colors: Vec::new(),
     }
 }
 
