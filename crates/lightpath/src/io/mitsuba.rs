@@ -91,8 +91,9 @@
 //! - Float parameters (`opacity`, `weight`, and the Disney BSDFs' parameters other than
 //!   `base_color`) read a colour texture as Mitsuba's `eval_1` does: an `rgb` constant
 //!   as the mean of its channels, a `bitmap` as its luminance, a `checkerboard` as each
-//!   colour's value (in the cell where its colour lookup shows that colour); a
-//!   `mesh_attribute` by the vertex colour's first channel (Mitsuba: its luminance).
+//!   colour's value (in the cell where its colour lookup shows that colour), a
+//!   `mesh_attribute` as the vertex colour's luminance (Mitsuba 3.9.1 refuses to read a
+//!   three-channel attribute as one value: `eval_attribute_1` throws).
 //! - `mesh_attribute` reads `vertex_color` only (a PLY file's `r`/`g`/`b` or
 //!   `red`/`green`/`blue`), times `scale`; 8-bit colours are decoded from sRGB to [0, 1]
 //!   (Mitsuba 3.9.1 keeps them as 0-255); a shape without vertex colours reads white.
@@ -376,8 +377,8 @@ fn grey_texture(t: &Arc<Texture>) -> Arc<Texture> {
             color1: mean(c.color1),
             ..c.clone()
         }),
-        // A one-value slot reads the first channel of a vertex colour.
-        Texture::VertexColor(_) => return t.clone(),
+        Texture::Luminance(_) => return t.clone(),
+        Texture::VertexColor(_) => Texture::Luminance(t.clone()),
         // (Only made of grey textures, by `roughness`.)
         Texture::Sqrt(inner) => {
             let g = grey_texture(inner);
@@ -2222,6 +2223,10 @@ mod tests {
         };
         let at = crate::texture::TexCoord::new(Vec2::ZERO, Vec3::new(0.2, 0.4, 0.8));
         assert_eq!(d.albedo.eval(at), Vec3::new(0.1, 0.2, 0.4));
+        // As a float parameter: the luminance of the scaled colour.
+        let one = grey_texture(&d.albedo).eval(at);
+        let l = crate::light::luminance(Vec3::new(0.1, 0.2, 0.4));
+        assert!((one - Vec3::splat(l)).abs().max_element() < 1e-7, "{one}");
         for (texture, needle) in [
             (
                 r#"<texture type="mesh_attribute" name="reflectance"><string name="name" value="face_color"/></texture>"#,

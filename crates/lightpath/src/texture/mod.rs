@@ -31,6 +31,9 @@ pub enum Texture {
     /// the colours a mesh file gives its vertices, interpolated over each triangle;
     /// white on shapes and meshes without them).
     VertexColor(Arc<Texture>),
+    /// Another texture's luminance in every channel (a colour texture read as one value,
+    /// as Mitsuba's `eval_1` reads one).
+    Luminance(Arc<Texture>),
 }
 
 /// Where a texture is looked up: the surface's texture coordinates and its vertex colour
@@ -92,6 +95,7 @@ impl Texture {
             }),
             Texture::Sqrt(t) => sqrt_or_zero(t.eval(at)),
             Texture::VertexColor(t) => t.eval(at) * at.color,
+            Texture::Luminance(t) => Vec3::splat(crate::light::luminance(t.eval(at))),
         }
     }
 
@@ -100,7 +104,7 @@ impl Texture {
         match self {
             Texture::VertexColor(_) => true,
             Texture::Transformed(t) => t.texture.uses_vertex_colors(),
-            Texture::Sqrt(t) => t.uses_vertex_colors(),
+            Texture::Sqrt(t) | Texture::Luminance(t) => t.uses_vertex_colors(),
             Texture::Constant(_) | Texture::Image(_) | Texture::Checkerboard(_) => false,
         }
     }
@@ -114,7 +118,7 @@ impl Texture {
             Texture::Constant(_) | Texture::Checkerboard(_) => Vec2::ZERO,
             // Vertex colours vary over a triangle but not with its texture coordinates:
             // the other texture's gradient (on white).
-            Texture::VertexColor(t) => t.luminance_gradient(uv),
+            Texture::VertexColor(t) | Texture::Luminance(t) => t.luminance_gradient(uv),
             Texture::Image(t) => t.luminance_gradient(uv),
             Texture::Transformed(t) => {
                 // d/duv f(A·uv + b) = Aᵀ ∇f.
@@ -146,6 +150,8 @@ impl Texture {
             Texture::Sqrt(t) => sqrt_or_zero(t.average()),
             // Vertex colours are unknown here: white, an upper bound for colours in [0, 1].
             Texture::VertexColor(t) => t.average(),
+            // Luminance is linear: the mean's luminance.
+            Texture::Luminance(t) => Vec3::splat(crate::light::luminance(t.average())),
         }
     }
 }
