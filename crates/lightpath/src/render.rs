@@ -781,7 +781,8 @@ impl Renderer<'_> {
     /// The first-hit AOVs (see [`crate::integrator::AovLayer`]) of samples `0..spp` of
     /// every pixel: the same camera rays as the image's samples (the sampler is started
     /// at each pixel sample and gives the film and lens positions first), averaged like
-    /// the image. One intersection per sample; only run when AOVs are asked for.
+    /// the image (albedo and normal with the pixel filter's sample weights; depth plainly
+    /// over the samples that hit). One intersection per sample; only run when AOVs are asked for.
     pub fn render_aovs(&self, spp: u32) -> Result<AovImages> {
         let (origin, res) = self.window()?;
         if spp == 0 {
@@ -801,12 +802,16 @@ impl Renderer<'_> {
                         let (mut depth, mut hits) = (0.0f64, 0u32);
                         for index in 0..spp {
                             sampler.start_pixel_sample(pixel, index);
-                            let Some((ray, ..)) = self.camera_ray(pixel, &mut sampler) else {
+                            let Some((ray, _, filter_weight)) =
+                                self.camera_ray(pixel, &mut sampler)
+                            else {
                                 continue;
                             };
                             if let Some(hit) = crate::integrator::first_hit(self.scene, &ray) {
-                                albedo += hit.albedo;
-                                normal += hit.normal;
+                                // Weighted by the filter as the image's samples are (a
+                                // negative-lobed filter's samples carry weights of ±).
+                                albedo += hit.albedo * filter_weight;
+                                normal += hit.normal * filter_weight;
                                 depth += hit.depth as f64;
                                 hits += 1;
                             }
@@ -1189,6 +1194,48 @@ mod tests {
                 assert!(renderer(&l).render_aovs(1).is_err());
             }
         }
+    }
+
+    /// The albedo AOV is averaged as the image is: with a negative-lobed pixel filter
+    /// (Lanczos, whose samples carry weights of ±), the albedo layer of a scene equals
+    /// the image its `albedo` integrator renders, pixel for pixel.
+    #[test]
+    fn aovs_are_weighted_by_the_pixel_filter() {
+        let xml = r#"<integrator type="albedo">
+            <scene>
+                <camera type="perspective">
+                    <integer name="width" value="24"/>
+                    <integer name="height" value="16"/>
+                    <transform><lookat origin="0,-1,-5" target="0,0,0" up="0,-1,0"/></transform>
+                </camera>
+                <instance>
+                    <shape type="sphere"/>
+                    <bsdf type="diffuse"><texture name="albedo" type="checkerboard" scale="6" color0="0.9,0.2,0.1" color1="0.1,0.3,0.8"/></bsdf>
+                </instance>
+                <instance>
+                    <shape type="plane"/>
+                    <bsdf type="diffuse"><texture name="albedo" type="constant" value="0.4"/></bsdf>
+                    <transform><rotate axis="1,0,0" angle="-90"/><translate y="1"/></transform>
+                </instance>
+            </scene>
+            <sampler type="independent" count="16"/>
+        </integrator>"#;
+        let mut l =
+            load_scene_str(xml, Path::new("aov-filter.xml"), &LoadOptions::default()).unwrap();
+        l.scene.filter = crate::film::Filter::lanczos(3);
+        let r = renderer(&l);
+        let (image, _) = r.render(&|_| {}).unwrap();
+        let aovs = r.render_aovs(16).unwrap();
+        let mut negative = false;
+        for (a, b) in aovs.albedo.pixels.iter().zip(&image.pixels) {
+            assert!(
+                (*a - *b).abs().max_element() < 1e-5,
+                "albedo AOV {a} against image {b}"
+            );
+            negative |= a.min_element() < 0.0;
+        }
+        // Some pixel beside an edge came out negative: the weights were applied.
+        assert!(negative, "the filter's negative lobes show");
     }
 
     fn in_passes(r: &Renderer, spp: u32) -> Rendered {
