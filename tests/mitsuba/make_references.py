@@ -163,7 +163,8 @@ def serialized():
 
 
 def colors():
-    """PLY meshes with float vertex colours (`r`, `g`, `b`: Mitsuba's `vertex_color`)."""
+    """PLY meshes with float vertex colours (`r`, `g`, `b`: Mitsuba's `vertex_color`) and
+    face colours (`face_color`)."""
     import math
 
     def ply(name, positions, colours, faces):
@@ -211,6 +212,26 @@ def colors():
             a = i * 5 + j
             faces += [(a, a + 1, a + 6), (a, a + 6, a + 5)]
     ply("colors_floor.ply", positions, colours, faces)
+    # An icosahedron whose 20 faces each have a colour of their own (face `r`, `g`, `b`:
+    # Mitsuba's `face_color`).
+    g = (1 + math.sqrt(5)) / 2
+    positions = [(-1, g, 0), (1, g, 0), (-1, -g, 0), (1, -g, 0), (0, -1, g), (0, 1, g),
+                 (0, -1, -g), (0, 1, -g), (g, 0, -1), (g, 0, 1), (-g, 0, -1), (-g, 0, 1)]
+    faces = [(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9),
+             (5, 11, 4), (11, 10, 2), (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2),
+             (3, 2, 6), (3, 6, 8), (3, 8, 9), (4, 9, 5), (2, 4, 11), (6, 2, 10),
+             (8, 6, 7), (9, 8, 1)]
+    lines = ["ply", "format ascii 1.0", f"element vertex {len(positions)}"]
+    lines += [f"property float {c}" for c in ("x", "y", "z")]
+    lines += [f"element face {len(faces)}", "property list uchar int vertex_indices"]
+    lines += [f"property float {c}" for c in ("r", "g", "b")]
+    lines.append("end_header")
+    for p in positions:
+        lines.append(" ".join(f"{x / math.hypot(1, g):.6f}" for x in p))
+    for k, f in enumerate(faces):
+        hue = [0.5 + 0.45 * math.cos(2 * math.pi * (k / 20 - c / 3)) for c in range(3)]
+        lines.append(" ".join(str(x) for x in (3, *f)) + " " + " ".join(f"{h:.6f}" for h in hue))
+    (HERE / "colors_faces.ply").write_text("\n".join(lines) + "\n")
 
 
 def references(venv):

@@ -27,8 +27,8 @@
 //! scaling `to_world`) and cubic B-spline curves (`bsplinecurve`: wavy tapering strands
 //! and a thick arch), and `flip_normals` on analytic shapes (a rectangle area light, a
 //! dielectric sphere that becomes a bubble, an open cylinder with a one-sided diffuse),
-//! a film's crop window, and vertex colours (`mesh_attribute` `vertex_color` from PLY
-//! files, as a diffuse reflectance and a principled base colour).
+//! a film's crop window, and vertex and face colours (`mesh_attribute` `vertex_color`
+//! and `face_color` from PLY files, as diffuse reflectances and a principled base colour).
 
 use lightpath::film::{Image, ImageErrors};
 use lightpath::io::{load_scene, load_scene_str, LoadOptions, LoadedScene};
@@ -167,18 +167,26 @@ fn vertex_colors_match_mitsuba() {
     check("colors", 1024);
 }
 
-/// The vertex-colour comparison can fail: the floor's vertex colours replaced by a grey
-/// of about their mean is caught.
+/// The vertex-colour comparison can fail: the floor's vertex colours, or the
+/// icosahedron's face colours, replaced by a grey of about their mean are caught.
 #[test]
 fn the_vertex_color_comparison_catches_a_uniform_colour() {
-    check_caught(
-        "colors",
-        r#"<texture type="mesh_attribute" name="reflectance">
-                <string name="name" value="vertex_color"/>
-            </texture>"#,
-        r#"<rgb name="reflectance" value="0.5"/>"#,
-        "a grey floor",
-    );
+    for (attribute, what) in [
+        ("vertex_color", "a grey floor"),
+        ("face_color", "a grey icosahedron"),
+    ] {
+        let texture = format!(
+            r#"<texture type="mesh_attribute" name="reflectance">
+                <string name="name" value="{attribute}"/>
+            </texture>"#
+        );
+        check_caught(
+            "colors",
+            &texture,
+            r#"<rgb name="reflectance" value="0.5"/>"#,
+            what,
+        );
+    }
 }
 
 /// The flip comparison can fail: the light left unflipped (facing away), the sphere

@@ -436,6 +436,16 @@ impl TriangleMesh {
         if let Some(i) = data.colors.iter().position(|c| !c.is_finite()) {
             return Err(format!("vertex {i} has a non-finite colour"));
         }
+        let faces = data.indices.len();
+        if !data.face_colors.is_empty() && data.face_colors.len() != faces {
+            return Err(format!(
+                "{} face colours for {faces} triangles",
+                data.face_colors.len()
+            ));
+        }
+        if let Some(i) = data.face_colors.iter().position(|c| !c.is_finite()) {
+            return Err(format!("triangle {i} has a non-finite colour"));
+        }
         // In parallel (a serial pass over a million triangles is a few percent of their
         // BVH's build on two threads, and more with more threads); the first offender
         // is named, as a serial pass would.
@@ -454,6 +464,7 @@ impl TriangleMesh {
                 "triangle {f} refers to vertex {bad}, but there are {n}"
             ));
         }
+        let data = data.unweld_face_colors();
         let boxes: Vec<Bounds3> = crate::accel::collect_huge(data.indices.par_iter().map(|t| {
             let mut b = Bounds3::from_point(data.positions[t[0] as usize]);
             b.expand(data.positions[t[1] as usize]);
@@ -1325,6 +1336,7 @@ mod tests {
             uvs: vec![],
             indices,
             colors: Vec::new(),
+            face_colors: Vec::new(),
         }
     }
 
@@ -1336,6 +1348,7 @@ mod tests {
             uvs: vec![],
             indices: vec![[0, 1, 2]],
             colors: Vec::new(),
+            face_colors: Vec::new(),
         };
         let mesh = TriangleMesh::new(data, false, AccelKind::Bvh2).unwrap();
         let mut s = RayStats::default();
@@ -1377,6 +1390,7 @@ mod tests {
             uvs: vec![],
             indices: vec![[0, 1, 3]],
             colors: Vec::new(),
+            face_colors: Vec::new(),
         };
         assert!(TriangleMesh::new(bad_index, true, AccelKind::Bvh2)
             .unwrap_err()
@@ -1387,6 +1401,7 @@ mod tests {
             uvs: vec![],
             indices: vec![[0, 1, 2]],
             colors: Vec::new(),
+            face_colors: Vec::new(),
         };
         assert!(TriangleMesh::new(nan, true, AccelKind::Bvh2).is_err());
     }
@@ -1517,6 +1532,7 @@ mod tests {
                 .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
                 .collect(),
             colors: Vec::new(),
+            face_colors: Vec::new(),
         }
     }
 
@@ -1528,6 +1544,7 @@ mod tests {
             uvs: vec![],
             indices: vec![],
             colors: Vec::new(),
+            face_colors: Vec::new(),
         };
         for y in 0..=n {
             for x in 0..=n {
@@ -1640,6 +1657,7 @@ mod tests {
             uvs: vec![],
             indices: vec![],
             colors: Vec::new(),
+            face_colors: Vec::new(),
         };
         let mesh = TriangleMesh::new(empty, false, AccelKind::Bvh8).unwrap();
         let rays = vec![Ray::new(Vec3::ZERO, Vec3::Z); 20];
@@ -1659,6 +1677,7 @@ mod tests {
             uvs: vec![],
             indices: vec![],
             colors: Vec::new(),
+            face_colors: Vec::new(),
         };
         for i in 0..3000u32 {
             let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 4.0;
@@ -1740,6 +1759,7 @@ mod tests {
             uvs: vec![Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y],
             indices: vec![[0, 1, 2], [0, 2, 3]],
             colors: Vec::new(),
+            face_colors: Vec::new(),
         };
         // Row 0 is the top of the image (v = 1).
         let coverage = Image {
@@ -1856,6 +1876,7 @@ mod tests {
             uvs: Vec::new(),
             indices: vec![[0, 1, 2], [0, 2, 3]],
             colors: Vec::new(),
+            face_colors: Vec::new(),
         };
         for kind in [AccelKind::Bvh8, AccelKind::Bvh2] {
             let mut mesh = TriangleMesh::new(data.clone(), false, kind).unwrap();

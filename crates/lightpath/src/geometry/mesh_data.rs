@@ -4,7 +4,8 @@ use glam::{Vec2, Vec3};
 
 /// Triangles with optional per-vertex normals, texture coordinates and colours.
 ///
-/// `normals`, `uvs` and `colors` are each either empty or as long as `positions`.
+/// `normals`, `uvs` and `colors` are each either empty or as long as `positions`;
+/// `face_colors` is empty or as long as `indices`.
 /// Colours are linear RGB (a file's 8-bit colours are decoded from sRGB by its reader). Triangle ids follow
 /// the file: faces in file order, a polygon `v0..vk` fan-triangulated into
 /// `(v0, vi, vi+1)`; degenerate triangles are kept so ids stay aligned with other tools.
@@ -15,9 +16,48 @@ pub struct MeshData {
     pub uvs: Vec<Vec2>,
     pub indices: Vec<[u32; 3]>,
     pub colors: Vec<Vec3>,
+    /// One linear-RGB colour per triangle, or empty; used where `colors` is empty:
+    /// [`crate::geometry::TriangleMesh::new`] gives each triangle vertices of its own
+    /// carrying its colour.
+    pub face_colors: Vec<Vec3>,
 }
 
 impl MeshData {
+    /// Face colours held as vertex colours: each triangle gets three vertices of its own
+    /// (positions, normals and texture coordinates copied) carrying its colour, so the
+    /// colour is constant over the face. Unchanged without face colours, or where there
+    /// are vertex colours (they win).
+    pub fn unweld_face_colors(self) -> MeshData {
+        if self.face_colors.is_empty() || !self.colors.is_empty() {
+            return self;
+        }
+        let n = 3 * self.indices.len();
+        let mut out = MeshData {
+            positions: Vec::with_capacity(n),
+            normals: Vec::with_capacity(if self.normals.is_empty() { 0 } else { n }),
+            uvs: Vec::with_capacity(if self.uvs.is_empty() { 0 } else { n }),
+            indices: Vec::with_capacity(self.indices.len()),
+            colors: Vec::with_capacity(n),
+            face_colors: Vec::new(),
+        };
+        for (t, (tri, &c)) in self.indices.iter().zip(&self.face_colors).enumerate() {
+            for &v in tri {
+                let v = v as usize;
+                out.positions.push(self.positions[v]);
+                if !self.normals.is_empty() {
+                    out.normals.push(self.normals[v]);
+                }
+                if !self.uvs.is_empty() {
+                    out.uvs.push(self.uvs[v]);
+                }
+                out.colors.push(c);
+            }
+            let b = 3 * t as u32;
+            out.indices.push([b, b + 1, b + 2]);
+        }
+        out
+    }
+
     /// Smooth vertex normals from the triangles, as Mitsuba computes them for a mesh
     /// file without normals: each triangle adds its unit normal weighted by its angle at
     /// the vertex (Thürmer and Wüthrich 1998); degenerate triangles add nothing, and a

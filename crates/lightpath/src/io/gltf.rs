@@ -860,6 +860,7 @@ impl<'a> Loader<'a> {
             uvs,
             indices: flat.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
             colors,
+            face_colors: Vec::new(),
         })
     }
 

@@ -94,10 +94,12 @@
 //!   colour's value (in the cell where its colour lookup shows that colour), a
 //!   `mesh_attribute` as the vertex colour's luminance (Mitsuba 3.9.1 refuses to read a
 //!   three-channel attribute as one value: `eval_attribute_1` throws).
-//! - `mesh_attribute` reads `vertex_color` only (a PLY file's `r`/`g`/`b` or
-//!   `red`/`green`/`blue`), times `scale`; 8-bit colours are decoded from sRGB to [0, 1]
-//!   (Mitsuba 3.9.1 keeps them as 0-255); a shape without vertex colours reads white.
-//!   Face attributes and other names are an error.
+//! - `mesh_attribute` reads `vertex_color` or `face_color` (a PLY file's `r`/`g`/`b`,
+//!   `red`/`green`/`blue` or `color_0`/`color_1`/`color_2` on its vertices or faces;
+//!   see [`super::ply`]), times `scale`; 8-bit colours are decoded from sRGB to [0, 1]
+//!   (Mitsuba 3.9.1 keeps them as 0-255); a shape without colours reads white. A mesh
+//!   holds one set of colours: where a file has both, `face_color` reads the vertices'.
+//!   Other attribute names are an error.
 //! - Texture coordinates follow Mitsuba: a `bitmap` has image row 0 at v = 0 (after its
 //!   `to_uv` transform), and OBJ meshes flip v unless `flip_tex_coords` is false.
 
@@ -551,6 +553,7 @@ fn masked_shape(shape: &Shape, mask: AlphaMask, accel: crate::accel::AccelKind) 
                 uvs: vec![Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y],
                 indices: vec![[0, 1, 2], [0, 2, 3]],
                 colors: Vec::new(),
+                face_colors: Vec::new(),
             };
             TriangleMesh::new(data, false, accel).ok()?
         }
@@ -1637,10 +1640,10 @@ impl Builder {
                 let name = node
                     .string("name")
                     .ok_or_else(|| node.error("mesh_attribute needs a `name`"))?;
-                if name != "vertex_color" {
+                if name != "vertex_color" && name != "face_color" {
                     return Err(node.error(format!(
-                        "mesh_attribute `{name}`: only `vertex_color` (a PLY file's vertex \
-                         colours) is supported"
+                        "mesh_attribute `{name}`: only `vertex_color` and `face_color` (a \
+                         PLY file's vertex or face colours) are supported"
                     )));
                 }
                 let scale = node.float_or("scale", 1.0)?;
@@ -2229,8 +2232,8 @@ mod tests {
         assert!((one - Vec3::splat(l)).abs().max_element() < 1e-7, "{one}");
         for (texture, needle) in [
             (
-                r#"<texture type="mesh_attribute" name="reflectance"><string name="name" value="face_color"/></texture>"#,
-                "only `vertex_color`",
+                r#"<texture type="mesh_attribute" name="reflectance"><string name="name" value="vertex_weight"/></texture>"#,
+                "only `vertex_color` and `face_color`",
             ),
             (
                 r#"<texture type="mesh_attribute" name="reflectance"/>"#,

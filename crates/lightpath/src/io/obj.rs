@@ -152,6 +152,7 @@ fn merge_meshes(path: &Path, meshes: &[&tobj::Mesh]) -> Result<MeshData> {
         uvs: Vec::with_capacity(if keep_uvs { total_vertices } else { 0 }),
         indices: Vec::with_capacity(total_triangles),
         colors: Vec::with_capacity(if keep_colors { total_vertices } else { 0 }),
+        face_colors: Vec::new(),
     };
 
     for m in meshes {

@@ -13,10 +13,12 @@
 //! - vertex properties `x`, `y`, `z` (required), `nx`, `ny`, `nz` (used when all
 //!   three are present) and texture coordinates named `u`/`v`, `s`/`t`,
 //!   `texture_u`/`texture_v` or `texture_s`/`texture_t` (first pair found, in
-//!   that order), and vertex colours `red`/`green`/`blue`, `r`/`g`/`b` or
-//!   `diffuse_red`/`diffuse_green`/`diffuse_blue` (floats as linear RGB; unsigned
-//!   integers, as scanners and MeshLab write them, as sRGB over the type's range,
-//!   decoded to linear);
+//!   that order), and vertex colours `red`/`green`/`blue`, `r`/`g`/`b`,
+//!   `diffuse_red`/`diffuse_green`/`diffuse_blue` or `color_0`/`color_1`/`color_2`
+//!   (Mitsuba's) (floats as linear RGB; unsigned integers, as scanners and MeshLab
+//!   write them, as sRGB over the type's range, decoded to linear);
+//! - face colours under the same names, where the vertices have none (one per triangle
+//!   of the face: see [`MeshData::face_colors`]);
 //! - a face list property `vertex_indices` or `vertex_index`;
 //! - any other elements and properties, which are skipped.
 //!
@@ -434,10 +436,12 @@ const U: usize = 6;
 const C: usize = 8;
 const SLOTS: usize = 11;
 
-const COLOR_NAMES: [[&str; 3]; 3] = [
+const COLOR_NAMES: [[&str; 3]; 4] = [
     ["red", "green", "blue"],
     ["r", "g", "b"],
     ["diffuse_red", "diffuse_green", "diffuse_blue"],
+    // As Mitsuba 3 writes a three-channel attribute.
+    ["color_0", "color_1", "color_2"],
 ];
 
 const UV_NAMES: [(&str, &str); 4] = [
@@ -447,7 +451,23 @@ const UV_NAMES: [(&str, &str); 4] = [
     ("texture_s", "texture_t"),
 ];
 
-/// How a vertex colour channel's stored value becomes linear RGB.
+/// An element's colour properties (the first of [`COLOR_NAMES`] it has all three of)
+/// and how each channel's stored value becomes linear RGB.
+fn color_properties(element: &Element) -> Option<([usize; 3], [ColorDecode; 3])> {
+    let props = COLOR_NAMES.iter().find_map(|names| {
+        let [r, g, b] = names.map(|n| element.scalar_property(n));
+        Some([r?, g?, b?])
+    })?;
+    let decode = props.map(|i| match element.properties[i].ty {
+        PropertyType::Scalar(ty @ (ScalarType::U8 | ScalarType::U16 | ScalarType::U32)) => {
+            ColorDecode::Srgb(ty.range().1)
+        }
+        _ => ColorDecode::Linear,
+    });
+    Some((props, decode))
+}
+
+/// How a colour channel's stored value becomes linear RGB.
 #[derive(Debug, Clone, Copy)]
 enum ColorDecode {
     /// Floats (and signed integers): the value itself.
@@ -506,26 +526,13 @@ fn read_body<B: Body>(
     }
     let has_uvs = uv_props.is_some();
     // Vertex colours, and how each channel's stored value becomes linear RGB.
-    let color_props = COLOR_NAMES.iter().find_map(|names| {
-        names
-            .iter()
-            .map(|n| vertex.scalar_property(n))
-            .collect::<Option<Vec<_>>>()
-    });
+    let color_props = color_properties(vertex);
     let mut color_decode = [ColorDecode::Linear; 3];
-    if let Some(props) = &color_props {
+    if let Some((props, decode)) = color_props {
         for (c, &i) in props.iter().enumerate() {
             slots[i] = Some(C + c);
-            let PropertyType::Scalar(ty) = vertex.properties[i].ty else {
-                unreachable!("scalar_property returns scalars")
-            };
-            color_decode[c] = match ty {
-                ScalarType::U8 | ScalarType::U16 | ScalarType::U32 => {
-                    ColorDecode::Srgb(ty.range().1)
-                }
-                _ => ColorDecode::Linear,
-            };
         }
+        color_decode = decode;
     }
     let has_colors = color_props.is_some();
 
@@ -557,8 +564,15 @@ fn read_body<B: Body>(
         uvs: Vec::with_capacity(if has_uvs { cap(vertex.count) } else { 0 }),
         indices: Vec::with_capacity(cap(face.count)),
         colors: Vec::with_capacity(if has_colors { cap(vertex.count) } else { 0 }),
+        face_colors: Vec::new(),
     };
     let vertex_count = vertex.count;
+    // Face colours, used where the vertices have none: one per triangle while reading.
+    let face_colors = if has_colors {
+        None
+    } else {
+        color_properties(face)
+    };
     let mut short_faces = 0usize;
     let mut polygon: Vec<u32> = Vec::with_capacity(8);
 
@@ -614,9 +628,17 @@ fn read_body<B: Body>(
             }
         } else if std::ptr::eq(element, face) {
             for f in 0..element.count {
+                let first_triangle = mesh.indices.len();
+                let mut color = [0f64; 3];
                 for (p, property) in element.properties.iter().enumerate() {
                     let context =
                         |e: String| format!("face {f}, property `{}`: {e}", property.name);
+                    let channel =
+                        face_colors.and_then(|(props, _)| props.iter().position(|&i| i == p));
+                    if let (Some(c), PropertyType::Scalar(ty)) = (channel, property.ty) {
+                        color[c] = body.read(ty).map_err(context)?;
+                        continue;
+                    }
                     if p != index_property {
                         body.skip(property.ty).map_err(context)?;
                         continue;
@@ -638,6 +660,17 @@ fn read_body<B: Body>(
                     for i in 1..polygon.len().saturating_sub(1) {
                         mesh.indices.push([polygon[0], polygon[i], polygon[i + 1]]);
                     }
+                }
+                if let Some((_, decode)) = face_colors {
+                    let c = Vec3::from_array(std::array::from_fn(|k| decode[k].linear(color[k])));
+                    if !c.is_finite() {
+                        return Err(format!(
+                            "face {f} has a non-finite colour ({}, {}, {})",
+                            color[0], color[1], color[2]
+                        ));
+                    }
+                    let added = mesh.indices.len() - first_triangle;
+                    mesh.face_colors.extend(std::iter::repeat_n(c, added));
                 }
             }
         } else {
@@ -744,6 +777,7 @@ end_header
             ],
             indices: vec![[0, 1, 2], [0, 2, 3], [1, 1, 2]],
             colors: Vec::new(),
+            face_colors: Vec::new(),
         }
     }
 
@@ -884,6 +918,44 @@ end_header
             message.contains("vertex 1 has a non-finite colour"),
             "{message}"
         );
+    }
+
+    /// Face colours, where the vertices have none: one per triangle of the face (a quad's
+    /// two share it); `TriangleMesh::new` then gives each triangle vertices of its own.
+    /// With vertex colours too, the faces' are not read.
+    #[test]
+    fn face_colours() {
+        let text = "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\n\
+                    property float y\nproperty float z\nelement face 2\n\
+                    property list uchar uint vertex_indices\nproperty uchar red\n\
+                    property uchar green\nproperty uchar blue\nend_header\n\
+                    0 0 0\n1 0 0\n1 1 0\n0 1 0\n2 0 0\n4 0 1 2 3 255 0 0\n3 1 4 2 0 0 255\n";
+        let mesh = load_bytes(text.as_bytes()).expect("load");
+        assert!(mesh.colors.is_empty());
+        let (red, blue) = (Vec3::X, Vec3::Z);
+        assert_eq!(mesh.face_colors, vec![red, red, blue]);
+        let unwelded = mesh.clone().unweld_face_colors();
+        assert_eq!(unwelded.positions.len(), 9);
+        assert_eq!(unwelded.indices, vec![[0, 1, 2], [3, 4, 5], [6, 7, 8]]);
+        assert_eq!(unwelded.colors[..3], [red; 3]);
+        assert_eq!(unwelded.colors[6..], [blue; 3]);
+        assert_eq!(unwelded.positions[7], mesh.positions[4]);
+        let m =
+            crate::geometry::TriangleMesh::new(mesh, false, crate::accel::AccelKind::Bvh2).unwrap();
+        assert_eq!(m.colors.len(), 9);
+        // Vertex colours win.
+        let both = text
+            .replace(
+                "element face",
+                "property float r\nproperty float g\nproperty float b\nelement face",
+            )
+            .replace(
+                "0 0 0\n1 0 0\n1 1 0\n0 1 0\n2 0 0\n",
+                "0 0 0 1 1 1\n1 0 0 1 1 1\n1 1 0 1 1 1\n0 1 0 1 1 1\n2 0 0 1 1 1\n",
+            );
+        let mesh = load_bytes(both.as_bytes()).expect("load");
+        assert_eq!(mesh.colors.len(), 5);
+        assert!(mesh.face_colors.is_empty());
     }
 
     #[test]

@@ -252,6 +252,7 @@ fn parse(data: &[u8], index: usize) -> std::result::Result<MeshData, String> {
         uvs,
         indices,
         colors: Vec::new(),
+        face_colors: Vec::new(),
     })
 }
 

@@ -340,6 +340,7 @@ mod tests {
                 uvs: m.uvs.clone(),
                 indices: m.indices.clone(),
                 colors: Vec::new(),
+                face_colors: Vec::new(),
             };
             let mesh = TriangleMesh::new(data, smooth, crate::accel::AccelKind::Bvh2).unwrap();
             let id = b.add_shape(Shape::TriangleMesh(Arc::new(mesh)));

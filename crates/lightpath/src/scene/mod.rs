@@ -631,6 +631,7 @@ mod tests {
                 uvs: vec![],
                 indices: vec![[0, 1, 2]],
                 colors: Vec::new(),
+                face_colors: Vec::new(),
             },
             false,
             crate::accel::AccelKind::Bvh2,

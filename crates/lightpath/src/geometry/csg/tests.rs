@@ -30,6 +30,7 @@ fn octahedron_data() -> MeshData {
             [0, 3, 5],
         ],
         colors: Vec::new(),
+        face_colors: Vec::new(),
     }
 }
 
