@@ -901,10 +901,14 @@ mod tests {
     use std::path::Path;
 
     fn scene(sampler: &str, spp: u32) -> LoadedScene {
+        scene_with("direct", sampler, spp)
+    }
+
+    fn scene_with(integrator: &str, sampler: &str, spp: u32) -> LoadedScene {
         // A point light on diffuse shapes: sample values are fractional, so the order in
         // which they are added shows in the bits.
         let xml = format!(
-            r#"<integrator type="direct">
+            r#"<integrator type="{integrator}">
                 <scene>
                     <camera type="perspective">
                         <integer name="width" value="37"/>
@@ -1201,27 +1205,7 @@ mod tests {
     /// the image its `albedo` integrator renders, pixel for pixel.
     #[test]
     fn aovs_are_weighted_by_the_pixel_filter() {
-        let xml = r#"<integrator type="albedo">
-            <scene>
-                <camera type="perspective">
-                    <integer name="width" value="24"/>
-                    <integer name="height" value="16"/>
-                    <transform><lookat origin="0,-1,-5" target="0,0,0" up="0,-1,0"/></transform>
-                </camera>
-                <instance>
-                    <shape type="sphere"/>
-                    <bsdf type="diffuse"><texture name="albedo" type="checkerboard" scale="6" color0="0.9,0.2,0.1" color1="0.1,0.3,0.8"/></bsdf>
-                </instance>
-                <instance>
-                    <shape type="plane"/>
-                    <bsdf type="diffuse"><texture name="albedo" type="constant" value="0.4"/></bsdf>
-                    <transform><rotate axis="1,0,0" angle="-90"/><translate y="1"/></transform>
-                </instance>
-            </scene>
-            <sampler type="independent" count="16"/>
-        </integrator>"#;
-        let mut l =
-            load_scene_str(xml, Path::new("aov-filter.xml"), &LoadOptions::default()).unwrap();
+        let mut l = scene_with("albedo", "independent", 16);
         l.scene.filter = crate::film::Filter::lanczos(3);
         let r = renderer(&l);
         let (image, _) = r.render(&|_| {}).unwrap();
