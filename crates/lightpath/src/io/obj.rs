@@ -94,6 +94,28 @@ fn parse_error(text: &str, e: tobj::LoadError) -> (u32, String) {
     (line, format!("cannot parse OBJ: {e}"))
 }
 
+/// Appends `flat`'s (x, y, z) triples to `out`, or fails naming the first one that is not
+/// finite as vertex `base + i`'s `what`.
+fn push_finite(
+    out: &mut Vec<Vec3>,
+    flat: &[f32],
+    what: &str,
+    base: usize,
+    path: &Path,
+) -> Result<()> {
+    for (i, v) in flat.chunks_exact(3).enumerate() {
+        let v = Vec3::new(v[0], v[1], v[2]);
+        if !v.is_finite() {
+            return Err(Error::mesh(
+                path,
+                format!("vertex {} has a non-finite {what} {v}", base + i),
+            ));
+        }
+        out.push(v);
+    }
+    Ok(())
+}
+
 /// Reads an OBJ file into triangle mesh data (geometry only).
 ///
 /// `normals` and `uvs` of the result are either empty or as long as `positions`.
@@ -158,16 +180,7 @@ fn merge_meshes(path: &Path, meshes: &[&tobj::Mesh]) -> Result<MeshData> {
     for m in meshes {
         let base = mesh.positions.len();
         let count = vertex_count(m);
-        for (i, p) in m.positions.chunks_exact(3).enumerate() {
-            let p = Vec3::new(p[0], p[1], p[2]);
-            if !p.is_finite() {
-                return Err(Error::mesh(
-                    path,
-                    format!("vertex {} has a non-finite position {p}", base + i),
-                ));
-            }
-            mesh.positions.push(p);
-        }
+        push_finite(&mut mesh.positions, &m.positions, "position", base, path)?;
         if keep_normals {
             mesh.normals.extend(
                 m.normals
@@ -176,16 +189,7 @@ fn merge_meshes(path: &Path, meshes: &[&tobj::Mesh]) -> Result<MeshData> {
             );
         }
         if keep_colors {
-            for (i, c) in m.vertex_color.chunks_exact(3).enumerate() {
-                let c = Vec3::new(c[0], c[1], c[2]);
-                if !c.is_finite() {
-                    return Err(Error::mesh(
-                        path,
-                        format!("vertex {} has a non-finite colour {c}", base + i),
-                    ));
-                }
-                mesh.colors.push(c);
-            }
+            push_finite(&mut mesh.colors, &m.vertex_color, "colour", base, path)?;
         }
         if keep_uvs {
             if has_uvs(m) {
