@@ -36,6 +36,68 @@ pub(crate) fn has_avx2() -> bool {
     }
 }
 
+/// Whether the processor executes each 256-bit vector instruction as two 128-bit
+/// halves: AMD's cores before Zen 2 that have AVX2 (Excavator, Zen, Zen+; family 15h,
+/// and 17h below model 30h) and Hygon's Zen-based Dhyana (family 18h). An 8-lane test
+/// there costs two 4-lane tests, so pairing a leaf's 4-triangle blocks into 8 lanes
+/// gains nothing, and pairing a lone block with itself doubles its cost.
+pub(crate) fn splits_256_bit() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::__cpuid;
+        #[allow(unused_unsafe)]
+        // SAFETY: `cpuid` exists on every x86-64 processor; leaf 0 reports the highest
+        // standard leaf, and leaf 1 is read only where it exists.
+        let (vendor, signature) = unsafe {
+            let id = __cpuid(0);
+            let mut vendor = [0u8; 12];
+            for (k, word) in [id.ebx, id.edx, id.ecx].into_iter().enumerate() {
+                vendor[4 * k..4 * k + 4].copy_from_slice(&word.to_le_bytes());
+            }
+            (vendor, (id.eax >= 1).then(|| __cpuid(1).eax))
+        };
+        signature.is_some_and(|eax| splits_256_bit_on(&vendor, eax))
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// [`splits_256_bit`] for a processor's vendor string and signature (`cpuid` leaf 1's
+/// `eax`: stepping, model, family and their extensions).
+fn splits_256_bit_on(vendor: &[u8; 12], signature: u32) -> bool {
+    let base_family = (signature >> 8) & 0xf;
+    let (family, model) = if base_family == 0xf {
+        (
+            base_family + ((signature >> 20) & 0xff),
+            ((signature >> 4) & 0xf) | ((signature >> 16) & 0xf) << 4,
+        )
+    } else {
+        (base_family, (signature >> 4) & 0xf)
+    };
+    match vendor {
+        b"AuthenticAMD" => family == 0x15 || family == 0x16 || (family == 0x17 && model < 0x30),
+        b"HygonGenuine" => family == 0x18,
+        _ => false,
+    }
+}
+
+/// How many 4-triangle blocks of a BVH leaf one SIMD test takes: two (8 lanes) where
+/// the processor has the AVX2 tier and full-width 256-bit units, else one (4 lanes,
+/// see [`splits_256_bit`]). The 8-wide BVH's collapse prices leaves by these tests, and
+/// the mesh's leaf test pairs blocks only where this is two.
+pub(crate) fn leaf_blocks_per_test() -> u32 {
+    static BLOCKS: std::sync::OnceLock<u32> = std::sync::OnceLock::new();
+    *BLOCKS.get_or_init(|| {
+        if has_avx2() && !splits_256_bit() {
+            2
+        } else {
+            1
+        }
+    })
+}
+
 /// Whether the processor has the AVX-512 tier (which includes the AVX2 tier).
 #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
 pub(crate) fn has_avx512() -> bool {
@@ -44,4 +106,32 @@ pub(crate) fn has_avx512() -> bool {
         && std::arch::is_x86_feature_detected!("avx512vl")
         && std::arch::is_x86_feature_detected!("avx512dq")
         && std::arch::is_x86_feature_detected!("avx512bw")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn split_256_bit_units_are_told_by_family_and_model() {
+        let amd = b"AuthenticAMD";
+        // Zen (EPYC 7601, family 17h model 01h) and Zen+ (Ryzen 2700X, model 08h) split
+        // 256-bit operations; Zen 2 (EPYC 7742, model 31h), Zen 4 (EPYC 9654, family
+        // 19h) and Intel (Skylake-SP) do not; Excavator (family 15h) and Hygon's
+        // Dhyana (family 18h) do.
+        assert!(splits_256_bit_on(amd, 0x0080_0f12));
+        assert!(splits_256_bit_on(amd, 0x0080_0f82));
+        assert!(!splits_256_bit_on(amd, 0x0083_0f10));
+        assert!(!splits_256_bit_on(amd, 0x00a1_0f11));
+        assert!(!splits_256_bit_on(b"GenuineIntel", 0x0005_0654));
+        assert!(splits_256_bit_on(amd, 0x0066_0f51));
+        assert!(splits_256_bit_on(b"HygonGenuine", 0x0090_0f01));
+        // The choice the leaf test and the collapse share follows from it.
+        let expected = if has_avx2() && !splits_256_bit() {
+            2
+        } else {
+            1
+        };
+        assert_eq!(leaf_blocks_per_test(), expected);
+    }
 }

@@ -171,24 +171,31 @@ fn model_cost<const W: usize>(root_area: f64, tree: &Collapsed<W>) -> f64 {
 }
 
 /// The collapse's cost model: a ray that enters a box pays `COST_NODE` to test a wide
-/// node's children there, or, for a leaf, `COST_LEAF` to reach it and `COST_PAIR` for
-/// each pair of its SIMD blocks (which the AVX2 leaf test takes as one 8-lane test; see
-/// [`leaf_cost`]). The constants and [`MERGE_LIMIT`] were measured rather than derived.
+/// node's children there, or, for a leaf, `COST_LEAF` to reach it and `COST_TEST` for
+/// each SIMD test of its blocks: a pair of blocks where the leaf test takes two as one
+/// 8-lane test (AVX2 with full-width units), else each block
+/// ([`crate::cpu::leaf_blocks_per_test`]; see [`leaf_cost`]). The constants and
+/// [`MERGE_LIMIT`] were measured rather than derived (with pairs, on a Zen 4).
 /// On both bunnies' four ray sets, costs per block from 0.15 to 0.6 of a node's, with
 /// leaves of up to two, three or four blocks, all beat the greedy collapse this
 /// replaced ("open the largest child"): cheap leaves make a small tree, whose fewer
 /// cache misses the single-ray traversal rewards more than it pays for the extra
 /// triangle tests. A cost per block lost 1.5 % on a small mesh (the Cornell box), where
 /// nothing misses the cache and a leaf's fixed cost shows; costs per pair plus that fixed
-/// cost kept the bunnies' gains and lost least there.
+/// cost kept the bunnies' gains and lost least there. Where 256-bit operations run as
+/// two halves (a Zen 1 EPYC), a pair costs two blocks: pricing each block, with lone
+/// blocks tested at 4 lanes rather than paired with themselves, traced the Stanford
+/// bunny's rays 2-11% faster on one thread than pairs did (the median of five
+/// alternated rounds; 57.9 bytes per triangle rather than 54.8).
 const COST_NODE: f32 = 1.0;
 const COST_LEAF: f32 = 0.5;
-const COST_PAIR: f32 = 0.3;
+const COST_TEST: f32 = 0.3;
 
 /// The cost of a leaf of `count` primitives per unit of its box's surface area.
 fn leaf_cost(count: u64) -> f32 {
     let blocks = count.div_ceil(LEAF_ALIGN as u64);
-    COST_LEAF + COST_PAIR * blocks.div_ceil(2) as f32
+    let tests = blocks.div_ceil(u64::from(crate::cpu::leaf_blocks_per_test()));
+    COST_LEAF + COST_TEST * tests as f32
 }
 
 /// Binary node `s`'s leaf range if it can become a leaf, from its span (see

@@ -87,9 +87,13 @@ pub struct TriangleMesh {
     /// The triangles in the order of the accelerator's leaves, four to a SIMD block,
     /// when the accelerator hands out whole leaves (the wide BVHs); empty otherwise.
     blocks: Vec<TriangleBlock>,
-    /// Whether the processor has the AVX2 tier (`crate::cpu`): a leaf's blocks are then
-    /// tested two at a time as 8 lanes.
+    /// Whether the processor has the AVX2 tier (`crate::cpu`): the queries are then
+    /// compiled for it.
     avx2: bool,
+    /// Whether a leaf's blocks are tested two at a time as 8 lanes (AVX2 on full-width
+    /// 256-bit units, [`crate::cpu::leaf_blocks_per_test`]); else one at a time as 4.
+    /// Implies `avx2`.
+    pair_blocks: bool,
     /// Whether the processor has AVX-512 (F, VL, DQ, BW) and the compiler its target
     /// features (`lightpath_avx512`): the block queries are then compiled for it (see
     /// [`crate::cpu::has_avx512`]).
@@ -491,6 +495,7 @@ impl TriangleMesh {
             accel,
             blocks,
             avx2: crate::cpu::has_avx2(),
+            pair_blocks: crate::cpu::has_avx2() && crate::cpu::leaf_blocks_per_test() == 2,
             #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
             avx512: crate::cpu::has_avx512(),
             area_distribution: std::sync::OnceLock::new(),
@@ -819,15 +824,17 @@ impl TriangleMesh {
         let mut found = false;
         let mut b = first as usize / BLOCK;
         let end = (first + count).div_ceil(BLOCK as u32) as usize;
-        // Two blocks at a time with 8-lane AVX2 where the processor has it; an odd last
-        // block is paired with itself and its copy's lanes dropped, so that every leaf
-        // takes the same path (which its size would otherwise make a mispredicted branch).
+        // Two blocks at a time with 8-lane AVX2 where the processor has full-width
+        // units for it (`pair_blocks`); an odd last block is paired with itself and its
+        // copy's lanes dropped, so that every leaf takes the same path (which its size
+        // would otherwise make a mispredicted branch). Elsewhere one block at a time: in
+        // the AVX2 callers as VEX-encoded 4-lane code.
         #[cfg(target_arch = "x86_64")]
-        if self.avx2 {
+        if self.pair_blocks {
             while b < end {
                 let last = b + 1 == end;
                 let (x, y) = (&self.blocks[b], &self.blocks[if last { b } else { b + 1 }]);
-                // SAFETY: `avx2` is set only where the processor has the AVX2 tier.
+                // SAFETY: `pair_blocks` is set only where the processor has the AVX2 tier.
                 let mut hits = unsafe { intersect_pair::<AVX2_CALLER>(x, y, wr, t_min, *t_max) };
                 hits.0 &= if last { 0xf } else { 0xff };
                 if MASKED {
@@ -863,11 +870,11 @@ impl TriangleMesh {
         let end = (first + count).div_ceil(BLOCK as u32) as usize;
         // As in `leaf_closest`: pairs of blocks, an odd last block paired with itself.
         #[cfg(target_arch = "x86_64")]
-        if self.avx2 {
+        if self.pair_blocks {
             while b < end {
                 let by = if b + 1 == end { b } else { b + 1 };
                 let (x, y) = (&self.blocks[b], &self.blocks[by]);
-                // SAFETY: `avx2` is set only where the processor has the AVX2 tier.
+                // SAFETY: `pair_blocks` is set only where the processor has the AVX2 tier.
                 let hits = unsafe { intersect_pair::<AVX2_CALLER>(x, y, wr, ray.t_min, ray.t_max) };
                 if hits.0 != 0
                     && (!MASKED || self.alpha_lanes(ray, [b, by], hits.0, &hits.2, &hits.3) != 0)
@@ -1706,8 +1713,13 @@ mod tests {
                     levels.push(m);
                 }
                 if best.avx2 {
+                    // AVX2 with the other leaf test than the processor's choice.
+                    let mut m = levels.last().unwrap().clone();
+                    m.pair_blocks = !m.pair_blocks;
+                    levels.push(m);
                     let mut m = levels.last().unwrap().clone();
                     m.avx2 = false;
+                    m.pair_blocks = false;
                     levels.push(m);
                 }
                 for mesh in &levels {
