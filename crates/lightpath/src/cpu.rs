@@ -126,12 +126,5 @@ mod tests {
         assert!(!splits_256_bit_on(b"GenuineIntel", 0x0005_0654));
         assert!(splits_256_bit_on(amd, 0x0066_0f51));
         assert!(splits_256_bit_on(b"HygonGenuine", 0x0090_0f01));
-        // The choice the leaf test and the collapse share follows from it.
-        let expected = if has_avx2() && !splits_256_bit() {
-            2
-        } else {
-            1
-        };
-        assert_eq!(leaf_blocks_per_test(), expected);
     }
 }

@@ -495,7 +495,7 @@ impl TriangleMesh {
             accel,
             blocks,
             avx2: crate::cpu::has_avx2(),
-            pair_blocks: crate::cpu::has_avx2() && crate::cpu::leaf_blocks_per_test() == 2,
+            pair_blocks: crate::cpu::leaf_blocks_per_test() == 2,
             #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
             avx512: crate::cpu::has_avx512(),
             area_distribution: std::sync::OnceLock::new(),
