@@ -2,10 +2,11 @@
 //! number is a pure function of (pixel, sample index, seed), so the image is
 //! bit-identical for any thread count and tile order.
 //!
-//! Where the scene's geometry is one merged triangle mesh with an 8-wide BVH and the
-//! processor has AVX-512, the path tracer advances a tile's paths together and traces
-//! their rays in packets of sixteen; elsewhere each sample's path is traced alone. Both
-//! give the same image (up to ties between triangles hit at exactly the same distance).
+//! Where the scene's geometry is one merged triangle mesh and the processor has AVX2,
+//! the path tracer advances a tile's paths together, scattering their diffuse vertices
+//! sixteen at a time in vector lanes, and, with an 8-wide BVH and AVX-512, traces their
+//! rays in packets of sixteen; elsewhere each sample's path is traced alone. All give
+//! the same image (up to ties between triangles hit at exactly the same distance).
 //!
 //! Rendering is progressive: [`Renderer::render_progressive`] renders the image in
 //! passes, pass k adding sample indices `[a, b)` to every pixel's running sum, and
@@ -19,11 +20,11 @@ use crate::camera::{Camera, CameraSample};
 use crate::error::{Error, Result};
 use crate::film::Image;
 use crate::integrator::Integrator;
-#[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+#[cfg(target_arch = "x86_64")]
 use crate::integrator::{DiffuseLanes, LaneResult, PathState, PathTracer, ShadowQuery};
 use crate::math::Ray;
 use crate::sampling::Sampler;
-#[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+#[cfg(target_arch = "x86_64")]
 use crate::scene::BatchHit;
 use crate::scene::Scene;
 use glam::{UVec2, Vec2, Vec3};
@@ -37,9 +38,9 @@ mod flare;
 /// Tile edge length in pixels.
 pub const TILE_SIZE: u32 = 16;
 
-/// Pixels in flight together in a tile of the packet-tracing path tracer
-/// (`Renderer::render_tile_wavefront`), one path each: four packets of sixteen rays.
-#[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+/// Pixels in flight together in a tile of the path tracer that advances paths together
+/// (`Renderer::render_tile_wavefront`), one path each: eight packets of sixteen rays.
+#[cfg(target_arch = "x86_64")]
 const WAVEFRONT_PIXELS: usize = 128;
 
 /// What the renderer reports after a render.
@@ -491,7 +492,59 @@ impl Renderer<'_> {
         sums: &[Vec3],
         abandoned: &AtomicBool,
     ) -> Option<(Vec<Vec3>, RenderStats)> {
+        if let Some(pt) = self.integrator.path_tracer() {
+            if self.scene.advances_paths_together() {
+                // SAFETY: the caller guarantees the AVX2 tier.
+                return unsafe {
+                    self.render_tile_wavefront_avx2(pt, x0, y0, job, sums, abandoned)
+                };
+            }
+        }
         self.render_tile_body(x0, y0, job, sums, abandoned)
+    }
+
+    /// [`Renderer::render_tile_wavefront`] compiled for the AVX2 tier, where rays are
+    /// traced one by one but the diffuse vertices still scatter in lanes
+    /// ([`DiffuseLanes::run_avx2`]).
+    ///
+    /// # Safety
+    /// The processor must have the AVX2 tier (`crate::cpu::has_avx2`).
+    #[cfg(target_arch = "x86_64")]
+    #[inline(never)]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    unsafe fn render_tile_wavefront_avx2(
+        &self,
+        pt: &PathTracer,
+        x0: u32,
+        y0: u32,
+        job: &PassJob,
+        sums: &[Vec3],
+        abandoned: &AtomicBool,
+    ) -> Option<(Vec<Vec3>, RenderStats)> {
+        // SAFETY: the caller guarantees the AVX2 tier that `run_avx2` needs.
+        let run = |lanes: &mut DiffuseLanes, scene: &Scene| unsafe { lanes.run_avx2(scene) };
+        self.render_tile_wavefront(pt, x0, y0, job, sums, abandoned, run)
+    }
+
+    /// [`Renderer::render_tile_wavefront`] compiled for the AVX-512 tier, with packets.
+    ///
+    /// # Safety
+    /// The processor must support AVX-512 F, VL, DQ and BW.
+    #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+    #[inline(never)]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
+    unsafe fn render_tile_wavefront_avx512(
+        &self,
+        pt: &PathTracer,
+        x0: u32,
+        y0: u32,
+        job: &PassJob,
+        sums: &[Vec3],
+        abandoned: &AtomicBool,
+    ) -> Option<(Vec<Vec3>, RenderStats)> {
+        // SAFETY: the caller guarantees the AVX-512 that `run_avx512` needs.
+        let run = |lanes: &mut DiffuseLanes, scene: &Scene| unsafe { lanes.run_avx512(scene) };
+        self.render_tile_wavefront(pt, x0, y0, job, sums, abandoned, run)
     }
 
     /// [`Renderer::render_tile`] compiled for the AVX-512 tier (F, VL, DQ, BW): EVEX code
@@ -511,17 +564,21 @@ impl Renderer<'_> {
         if let Some(pt) = self.integrator.path_tracer() {
             if self.scene.traces_packets() {
                 // SAFETY: the caller guarantees AVX-512 F, VL, DQ and BW.
-                return unsafe { self.render_tile_wavefront(pt, x0, y0, job, sums, abandoned) };
+                return unsafe {
+                    self.render_tile_wavefront_avx512(pt, x0, y0, job, sums, abandoned)
+                };
             }
         }
         self.render_tile_body(x0, y0, job, sums, abandoned)
     }
 
-    /// [`Renderer::render_tile_body`] for the path tracer where the scene traces packets
-    /// ([`Scene::traces_packets`]): the paths of [`WAVEFRONT_PIXELS`] pixels advance
+    /// [`Renderer::render_tile_body`] for the path tracer where the scene's geometry is
+    /// one merged mesh ([`Scene::advances_paths_together`]): the paths of
+    /// [`WAVEFRONT_PIXELS`] pixels advance
     /// together, one vertex at a time ([`PathTracer::step`], with the diffuse vertices
     /// scattered sixteen at a time by [`DiffuseLanes`]), and each round traces all
-    /// their rays, then all their shadow rays, as batches of packets. Each pixel has one
+    /// their rays, then all their shadow rays, as batches (packets of sixteen where
+    /// [`Scene::traces_packets`], ray by ray elsewhere). Each pixel has one
     /// path in flight, its samples in index order, with its own sampler, so every sample
     /// draws the numbers [`PathTracer::li`] would and the pixel's sum adds them in the
     /// same order: the image equals the ray-by-ray render's except where a ray hits two
@@ -529,15 +586,16 @@ impl Renderer<'_> {
     ///
     /// Cornell box (Mitsuba's, 256², depth 8, 2 threads, Zen 5): packets gained 13% with
     /// the independent sampler and 16% with Sobol against the ray-by-ray tile, and the
-    /// lanes another 28% and 27%.
+    /// lanes another 28% and 27%. On a Zen 1 (AVX2, 256-bit operations split in two),
+    /// rays traced one by one, the lanes alone gained 11% with either sampler.
     ///
-    /// # Safety
-    /// The processor must support AVX-512 F, VL, DQ and BW. (Out of line: the tile's
-    /// loop apart from the other integrators' code keeps its hot code together.)
-    #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
-    #[inline(never)]
-    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
-    unsafe fn render_tile_wavefront(
+    /// Inlined into one out-of-line function per tier (the tile's loop apart from the
+    /// other integrators' code keeps its hot code together), which hands it `run_lanes`,
+    /// [`DiffuseLanes::run`] compiled for that tier.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn render_tile_wavefront(
         &self,
         pt: &PathTracer,
         x0: u32,
@@ -545,6 +603,7 @@ impl Renderer<'_> {
         job: &PassJob,
         sums: &[Vec3],
         abandoned: &AtomicBool,
+        run_lanes: impl Fn(&mut DiffuseLanes, &Scene),
     ) -> Option<(Vec<Vec3>, RenderStats)> {
         let res = job.res;
         let (x1, y1) = ((x0 + TILE_SIZE).min(res.x), (y0 + TILE_SIZE).min(res.y));
@@ -650,9 +709,7 @@ impl Renderer<'_> {
                     Some(more) => ended[i] = !more,
                     None => {
                         if lanes.is_full() {
-                            // SAFETY: this tile runs only where the processor has
-                            // AVX-512 F, VL, DQ and BW.
-                            unsafe { lanes.run_avx512(self.scene) };
+                            run_lanes(&mut lanes, self.scene);
                             lanes.finish(|r| {
                                 lane_done(r, &mut live, &mut ended, &mut shadows, &mut shadow_rays)
                             });
@@ -666,9 +723,7 @@ impl Renderer<'_> {
                 }
             }
             if lanes.len() > 0 {
-                // SAFETY: this tile runs only where the processor has AVX-512 F, VL, DQ
-                // and BW.
-                unsafe { lanes.run_avx512(self.scene) };
+                run_lanes(&mut lanes, self.scene);
                 lanes.finish(|r| {
                     lane_done(r, &mut live, &mut ended, &mut shadows, &mut shadow_rays)
                 });
@@ -1077,7 +1132,9 @@ mod tests {
                 // The AVX-512 render tile is the one that takes packets.
                 assert!(l.scene.traces_packets());
             }
-            // Both integrators take the packet tile where the scene traces packets.
+            // The AVX2 and AVX-512 tiles advance the paths together (with lanes).
+            assert!(l.scene.advances_paths_together());
+            // Both integrators take the tile that advances paths together.
             assert!(l.integrator.path_tracer().is_some());
             let r = renderer(&l);
             let (image, stats) = r.render(&|_| {}).unwrap();

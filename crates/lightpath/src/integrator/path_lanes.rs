@@ -13,7 +13,8 @@
 //! multiply-adds, the same polynomial sine and cosine. So a vertex gets the same values,
 //! bit for bit, whichever way it runs, and an image does not depend on which of its
 //! paths ran here. The work is written with [`crate::math::lanes::F32x16`] operations
-//! and selects in place of branches: one AVX-512 instruction per operation.
+//! and selects in place of branches: one AVX-512 instruction per operation, or two AVX2
+//! ones (the renderer compiles [`DiffuseLanes::run`] for each tier).
 //!
 //! Nothing in a scene file selects this: the Cornell box below takes it at every vertex.
 //!
@@ -335,6 +336,19 @@ impl DiffuseLanes {
     #[inline(never)]
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
     pub(crate) unsafe fn run_avx512(&mut self, scene: &Scene) {
+        self.run(scene)
+    }
+
+    /// [`DiffuseLanes::run`] out of line, compiled for the AVX2 tier (two 8-lane
+    /// instructions per operation; no multiply-adds fused, so the results are still
+    /// the scalar code's bit for bit).
+    ///
+    /// # Safety
+    /// The processor must have the AVX2 tier (`crate::cpu::has_avx2`).
+    #[cfg(target_arch = "x86_64")]
+    #[inline(never)]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    pub(crate) unsafe fn run_avx2(&mut self, scene: &Scene) {
         self.run(scene)
     }
 

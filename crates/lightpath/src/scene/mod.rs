@@ -390,6 +390,14 @@ impl Scene {
         matches!((&self.merged[..], self.only_merged()), ([m], true) if m.mesh.traces_packets())
     }
 
+    /// Whether the renderer's path tracer advances many paths together here, gathering
+    /// their rays into batches ([`Scene::intersect_batch`]) and their diffuse vertices
+    /// into lanes: all the geometry is one merged triangle mesh, whose batches run as
+    /// packets where [`Scene::traces_packets`] and ray by ray elsewhere.
+    pub fn advances_paths_together(&self) -> bool {
+        matches!((&self.merged[..], self.only_merged()), ([_], true))
+    }
+
     /// The closest hits of many rays (`hits[i]` for `rays[i]`), as
     /// [`Scene::intersect_with_stats`] finds them one by one: the same distances, but
     /// where two triangles are hit at exactly the same distance either may be reported.
