@@ -526,7 +526,8 @@ impl Renderer<'_> {
         self.render_tile_wavefront(pt, x0, y0, job, sums, abandoned, run)
     }
 
-    /// [`Renderer::render_tile_wavefront`] compiled for the AVX-512 tier, with packets.
+    /// [`Renderer::render_tile_wavefront`] compiled for the AVX-512 tier (with packets
+    /// where [`Scene::traces_packets`]).
     ///
     /// # Safety
     /// The processor must support AVX-512 F, VL, DQ and BW.
@@ -550,7 +551,7 @@ impl Renderer<'_> {
     /// [`Renderer::render_tile`] compiled for the AVX-512 tier (F, VL, DQ, BW): EVEX code
     /// with 32 vector registers, a few per cent faster; still nothing fused, so the
     /// image is the same bit for bit (see [`crate::cpu::has_avx512`]). The path tracer on
-    /// a scene that traces packets takes [`Renderer::render_tile_wavefront`] instead.
+    /// a scene of one merged mesh takes [`Renderer::render_tile_wavefront`] instead.
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
     unsafe fn render_tile_avx512(
@@ -562,7 +563,7 @@ impl Renderer<'_> {
         abandoned: &AtomicBool,
     ) -> Option<(Vec<Vec3>, RenderStats)> {
         if let Some(pt) = self.integrator.path_tracer() {
-            if self.scene.traces_packets() {
+            if self.scene.advances_paths_together() {
                 // SAFETY: the caller guarantees AVX-512 F, VL, DQ and BW.
                 return unsafe {
                     self.render_tile_wavefront_avx512(pt, x0, y0, job, sums, abandoned)
@@ -951,6 +952,7 @@ impl Schedule {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::accel::AccelKind;
     use crate::io::{load_scene_str, LoadOptions, LoadedScene};
     use crate::scene::CropWindow;
     use std::path::Path;
@@ -1015,6 +1017,17 @@ mod tests {
         integrator: &str,
         spp: u32,
         flare_sampling: Option<&str>,
+    ) -> LoadedScene {
+        mesh_scene_built(sampler, integrator, spp, flare_sampling, AccelKind::Bvh8)
+    }
+
+    /// [`mesh_scene_seen_by`] with the meshes' accelerator `accel`.
+    fn mesh_scene_built(
+        sampler: &str,
+        integrator: &str,
+        spp: u32,
+        flare_sampling: Option<&str>,
+        accel: AccelKind,
     ) -> LoadedScene {
         // A folder per call: tests run in parallel, and each removes its folder.
         static CALLS: AtomicU64 = AtomicU64::new(0);
@@ -1104,7 +1117,7 @@ mod tests {
             },
         );
         let options = LoadOptions {
-            accel: Some(crate::accel::AccelKind::Bvh8),
+            accel: Some(accel),
             ..Default::default()
         };
         let l = load_scene_str(&xml, Path::new("meshes.xml"), &options).unwrap();
@@ -1117,20 +1130,23 @@ mod tests {
     /// traced alone by `PathTracer::li`, in several passes as in one, for every sampler.
     #[test]
     fn packet_path_tracer_equals_ray_by_ray() {
-        for (sampler, integrator, lens) in [
-            ("independent", "pathtracer", None),
-            ("sobol", "pathtracer", None),
-            ("halton", "pathtracer", None),
-            ("sobol", "direct", None),
+        for (sampler, integrator, lens, accel) in [
+            ("independent", "pathtracer", None, AccelKind::Bvh8),
+            ("sobol", "pathtracer", None, AccelKind::Bvh8),
+            ("halton", "pathtracer", None, AccelKind::Bvh8),
+            ("sobol", "direct", None, AccelKind::Bvh8),
             // Ghosts found by camera rays (light-traced ghosts are not camera paths).
-            ("sobol", "pathtracer", Some("camera")),
+            ("sobol", "pathtracer", Some("camera"), AccelKind::Bvh8),
+            // Paths advanced together, their rays traced one by one.
+            ("independent", "pathtracer", None, AccelKind::Bvh4),
         ] {
             let spp = 6;
-            let l = mesh_scene_seen_by(sampler, integrator, spp, lens);
+            let l = mesh_scene_built(sampler, integrator, spp, lens, accel);
             #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
             if crate::cpu::has_avx512() {
-                // The AVX-512 render tile is the one that takes packets.
-                assert!(l.scene.traces_packets());
+                // The AVX-512 render tile is the one that takes packets, through an
+                // 8-wide BVH.
+                assert_eq!(l.scene.traces_packets(), accel == AccelKind::Bvh8);
             }
             // The AVX2 and AVX-512 tiles advance the paths together (with lanes).
             assert!(l.scene.advances_paths_together());
