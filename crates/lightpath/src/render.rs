@@ -575,12 +575,11 @@ impl Renderer<'_> {
 
     /// [`Renderer::render_tile_body`] for the path tracer where the scene's geometry is
     /// one merged mesh ([`Scene::advances_paths_together`]): the paths of
-    /// [`WAVEFRONT_PIXELS`] pixels advance
-    /// together, one vertex at a time ([`PathTracer::step`], with the diffuse vertices
-    /// scattered sixteen at a time by [`DiffuseLanes`]), and each round traces all
-    /// their rays, then all their shadow rays, as batches (packets of sixteen where
-    /// [`Scene::traces_packets`], ray by ray elsewhere). Each pixel has one
-    /// path in flight, its samples in index order, with its own sampler, so every sample
+    /// [`WAVEFRONT_PIXELS`] pixels advance together, one vertex at a time
+    /// ([`PathTracer::step`], with the diffuse vertices scattered sixteen at a time by
+    /// [`DiffuseLanes`]), and each round traces all their rays, then all their shadow
+    /// rays, as batches (packets of sixteen where [`Scene::traces_packets`], ray by ray
+    /// elsewhere). Each pixel has one path in flight, its samples in index order, with its own sampler, so every sample
     /// draws the numbers [`PathTracer::li`] would and the pixel's sum adds them in the
     /// same order: the image equals the ray-by-ray render's except where a ray hits two
     /// triangles at exactly the same distance (either may be reported).
