@@ -85,20 +85,24 @@ impl TriangleBlock {
         if (e0.cmpeq(zero) | e1.cmpeq(zero) | e2.cmpeq(zero)).any() {
             return self.intersect_scalar(wr, t_min, t_max);
         }
-        let negative = e0.cmplt(zero) | e1.cmplt(zero) | e2.cmplt(zero);
-        let positive = e0.cmpgt(zero) | e1.cmpgt(zero) | e2.cmpgt(zero);
+        // No edge function is zero, so a lane's three share a sign exactly where their
+        // minimum is positive or their maximum negative; their sum `det` is then not
+        // zero either. (A lane with a NaN may pass here; its `t` is NaN and fails the
+        // last test.)
+        let mut valid = e0.min(e1).min(e2).cmpgt(zero) | e0.max(e1).max(e2).cmplt(zero);
         let det = e0 + e1 + e2;
-        let mut valid = !(negative & positive) & det.cmpne(zero);
         if !valid.any() {
             return (0, zero, zero, zero);
         }
         let (az, bz, cz) = (az * sz, bz * sz, cz * sz);
         let t_scaled = e0 * az + e1 * bz + e2 * cz;
-        let (lo, hi) = (Vec4::splat(t_min) * det, Vec4::splat(t_max) * det);
-        let det_negative = det.cmplt(zero);
-        let reject_negative = det_negative & (t_scaled.cmpge(lo) | t_scaled.cmplt(hi));
-        let reject_positive = !det_negative & (t_scaled.cmple(lo) | t_scaled.cmpgt(hi));
-        valid &= !(reject_negative | reject_positive);
+        // `t_min < t_scaled / det <= t_max` as `t_min·|det| < ±t_scaled <= t_max·|det|`,
+        // the sign flipped where `det` is negative: negation is exact, and so is
+        // `t_min·|det| = |t_min·det|`, so this is the signed comparison bit for bit.
+        let abs_det = det.abs();
+        let (lo, hi) = (Vec4::splat(t_min) * abs_det, Vec4::splat(t_max) * abs_det);
+        let t_signed = flip_sign(t_scaled, det);
+        valid &= t_signed.cmpgt(lo) & t_signed.cmple(hi);
         if !valid.any() {
             return (0, zero, zero, zero);
         }
@@ -142,6 +146,28 @@ impl TriangleBlock {
             }
         }
         (bits, t, b1, b2)
+    }
+}
+
+/// `x` negated where `by` is negative (has its sign bit set): exact.
+#[inline(always)]
+fn flip_sign(x: Vec4, by: Vec4) -> Vec4 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::*;
+        // SAFETY: SSE2 is part of x86-64.
+        unsafe {
+            let sign = _mm_and_ps(by.into(), _mm_set1_ps(-0.0));
+            Vec4::from(_mm_xor_ps(x.into(), sign))
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        // Multiplying by ±1 is exact.
+        x * Vec4::from_array(
+            by.to_array()
+                .map(|v| if v.is_sign_negative() { -1.0 } else { 1.0 }),
+        )
     }
 }
 
@@ -235,7 +261,7 @@ pub unsafe fn intersect_pair_inline(
     let e1 = sub(mul(cx, ay), mul(cy, ax));
     let e2 = sub(mul(ax, by), mul(ay, bx));
     let zero = _mm256_setzero_ps();
-    let (or, and, andnot) = (_mm256_or_ps, _mm256_and_ps, _mm256_andnot_ps);
+    let (or, and) = (_mm256_or_ps, _mm256_and_ps);
     let is_zero = or(
         or(
             _mm256_cmp_ps::<_CMP_EQ_OQ>(e0, zero),
@@ -247,15 +273,13 @@ pub unsafe fn intersect_pair_inline(
         // Exactly zero edge functions: the 4-lane path falls back to the scalar test.
         return pair_by_blocks(a, b, wr, t_min, t_max);
     }
-    let lt = |x| _mm256_cmp_ps::<_CMP_LT_OQ>(x, zero);
-    let gt = |x| _mm256_cmp_ps::<_CMP_GT_OQ>(x, zero);
-    let negative = or(or(lt(e0), lt(e1)), lt(e2));
-    let positive = or(or(gt(e0), gt(e1)), gt(e2));
-    let det = add(add(e0, e1), e2);
-    let mut valid = andnot(
-        and(negative, positive),
-        _mm256_cmp_ps::<_CMP_NEQ_UQ>(det, zero),
+    // As in `TriangleBlock::intersect`: the lanes whose edge functions share a sign.
+    let (min, max) = (_mm256_min_ps, _mm256_max_ps);
+    let mut valid = or(
+        _mm256_cmp_ps::<_CMP_GT_OQ>(min(min(e0, e1), e2), zero),
+        _mm256_cmp_ps::<_CMP_LT_OQ>(max(max(e0, e1), e2), zero),
     );
+    let det = add(add(e0, e1), e2);
     let none = (0, [0.0; 8], [0.0; 8], [0.0; 8]);
     // No early return where every lane failed the edge test: for incoherent rays that is
     // a coin toss the branch predictor loses, and the distance test below costs less
@@ -263,31 +287,25 @@ pub unsafe fn intersect_pair_inline(
     // and the error bounds, and mostly goes one way (measured 7% faster with it).
     let (az, bz, cz) = (mul(az, sz), mul(bz, sz), mul(cz, sz));
     let t_scaled = add(add(mul(e0, az), mul(e1, bz)), mul(e2, cz));
-    let lo = mul(_mm256_set1_ps(t_min), det);
-    let hi = mul(_mm256_set1_ps(t_max), det);
-    let det_negative = lt(det);
-    let reject_negative = and(
-        det_negative,
-        or(
-            _mm256_cmp_ps::<_CMP_GE_OQ>(t_scaled, lo),
-            _mm256_cmp_ps::<_CMP_LT_OQ>(t_scaled, hi),
+    // As in `TriangleBlock::intersect`: `t_min·|det| < ±t_scaled <= t_max·|det|`.
+    let sign = _mm256_set1_ps(-0.0);
+    let abs = |x| _mm256_andnot_ps(sign, x);
+    let abs_det = abs(det);
+    let lo = mul(_mm256_set1_ps(t_min), abs_det);
+    let hi = mul(_mm256_set1_ps(t_max), abs_det);
+    let t_signed = _mm256_xor_ps(t_scaled, and(det, sign));
+    valid = and(
+        valid,
+        and(
+            _mm256_cmp_ps::<_CMP_GT_OQ>(t_signed, lo),
+            _mm256_cmp_ps::<_CMP_LE_OQ>(t_signed, hi),
         ),
     );
-    let reject_positive = andnot(
-        det_negative,
-        or(
-            _mm256_cmp_ps::<_CMP_LE_OQ>(t_scaled, lo),
-            _mm256_cmp_ps::<_CMP_GT_OQ>(t_scaled, hi),
-        ),
-    );
-    valid = andnot(or(reject_negative, reject_positive), valid);
     if _mm256_movemask_ps(valid) == 0 {
         return none;
     }
     let inv_det = _mm256_div_ps(_mm256_set1_ps(1.0), det);
     let t = mul(t_scaled, inv_det);
-    let abs = |x| _mm256_andnot_ps(_mm256_set1_ps(-0.0), x);
-    let max = _mm256_max_ps;
     let max_zt = max(max(abs(az), abs(bz)), abs(cz));
     let delta_z = mul(_mm256_set1_ps(gamma(3)), max_zt);
     let max_xt = max(max(abs(ax), abs(bx)), abs(cx));
