@@ -163,11 +163,8 @@ fn flip_sign(x: Vec4, by: Vec4) -> Vec4 {
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
-        // Multiplying by ±1 is exact.
-        x * Vec4::from_array(
-            by.to_array()
-                .map(|v| if v.is_sign_negative() { -1.0 } else { 1.0 }),
-        )
+        // Multiplying by ±1 is exact (a NaN `by` gives NaN, which every comparison fails).
+        x * by.signum()
     }
 }
 
