@@ -9,8 +9,18 @@
 //!
 //! The lanes compute exactly what [`intersect_triangle_watertight`] computes, operation
 //! for operation in the same order (no fused multiply-adds), so the packed path and the
-//! scalar path agree bit for bit; a lane whose edge function is exactly zero falls back
-//! to the scalar test, which redoes that case in double precision.
+//! scalar path agree bit for bit.
+//!
+//! A lane is *inside* when its three edge functions are all `>= 0` or all `<= 0` (their
+//! minimum `>= 0` or maximum `<= 0`), and *strictly inside* with `>` and `<`. A lane that
+//! is not inside is a miss for the scalar test too: that test redoes the edge functions
+//! in double precision when one is exactly zero, but an edge function rounded to single
+//! precision has the sign of the exact one or is zero (rounding the two products is
+//! monotonic), so two nonzero ones of opposite signs stay opposite (for products in the
+//! normal range, as for any coordinates above about 1e-19). Most blocks end there, with
+//! no lane inside; a block with a lane inside but not strictly (on an edge, or
+//! degenerate) falls back to the scalar test. Every lane left is strictly inside, and its
+//! determinant (the sum) is not zero.
 
 use super::mesh::{intersect_triangle_watertight, WatertightRay};
 use crate::math::gamma;
@@ -82,18 +92,19 @@ impl TriangleBlock {
         let e1 = cx * ay - cy * ax;
         let e2 = ax * by - ay * bx;
         let zero = Vec4::ZERO;
-        if (e0.cmpeq(zero) | e1.cmpeq(zero) | e2.cmpeq(zero)).any() {
-            return self.intersect_scalar(wr, t_min, t_max);
-        }
-        // No edge function is zero, so a lane's three share a sign exactly where their
-        // minimum is positive or their maximum negative; their sum `det` is then not
-        // zero either. (A lane with a NaN may pass here; its `t` is NaN and fails the
-        // last test.)
-        let mut valid = e0.min(e1).min(e2).cmpgt(zero) | e0.max(e1).max(e2).cmplt(zero);
-        let det = e0 + e1 + e2;
-        if !valid.any() {
+        // The lanes inside all three edges, and those strictly inside (see the module
+        // docs). Most blocks end here, with no lane inside.
+        let (e_min, e_max) = (e0.min(e1).min(e2), e0.max(e1).max(e2));
+        let inside = e_min.cmpge(zero) | e_max.cmple(zero);
+        if !inside.any() {
             return (0, zero, zero, zero);
         }
+        let mut valid = e_min.cmpgt(zero) | e_max.cmplt(zero);
+        if valid.bitmask() != inside.bitmask() {
+            return self.intersect_scalar(wr, t_min, t_max);
+        }
+        // Every lane still in is strictly inside, so its sum `det` is not zero.
+        let det = e0 + e1 + e2;
         let (az, bz, cz) = (az * sz, bz * sz, cz * sz);
         let t_scaled = e0 * az + e1 * bz + e2 * cz;
         // `t_min < t_scaled / det <= t_max` as `t_min·|det| < ±t_scaled <= t_max·|det|`,
@@ -259,23 +270,21 @@ pub unsafe fn intersect_pair_inline(
     let e2 = sub(mul(ax, by), mul(ay, bx));
     let zero = _mm256_setzero_ps();
     let (or, and) = (_mm256_or_ps, _mm256_and_ps);
-    let is_zero = or(
-        or(
-            _mm256_cmp_ps::<_CMP_EQ_OQ>(e0, zero),
-            _mm256_cmp_ps::<_CMP_EQ_OQ>(e1, zero),
-        ),
-        _mm256_cmp_ps::<_CMP_EQ_OQ>(e2, zero),
+    // As in `TriangleBlock::intersect`: the lanes strictly inside, and the scalar test
+    // where a lane is inside but on an edge (see the module docs).
+    let (min, max) = (_mm256_min_ps, _mm256_max_ps);
+    let (e_min, e_max) = (min(min(e0, e1), e2), max(max(e0, e1), e2));
+    let mut valid = or(
+        _mm256_cmp_ps::<_CMP_GT_OQ>(e_min, zero),
+        _mm256_cmp_ps::<_CMP_LT_OQ>(e_max, zero),
     );
-    if _mm256_movemask_ps(is_zero) != 0 {
-        // Exactly zero edge functions: the 4-lane path falls back to the scalar test.
+    let inside = or(
+        _mm256_cmp_ps::<_CMP_GE_OQ>(e_min, zero),
+        _mm256_cmp_ps::<_CMP_LE_OQ>(e_max, zero),
+    );
+    if _mm256_movemask_ps(inside) != _mm256_movemask_ps(valid) {
         return pair_by_blocks(a, b, wr, t_min, t_max);
     }
-    // As in `TriangleBlock::intersect`: the lanes whose edge functions share a sign.
-    let (min, max) = (_mm256_min_ps, _mm256_max_ps);
-    let mut valid = or(
-        _mm256_cmp_ps::<_CMP_GT_OQ>(min(min(e0, e1), e2), zero),
-        _mm256_cmp_ps::<_CMP_LT_OQ>(max(max(e0, e1), e2), zero),
-    );
     let det = add(add(e0, e1), e2);
     let none = (0, [0.0; 8], [0.0; 8], [0.0; 8]);
     // No early return where every lane failed the edge test: for incoherent rays that is
