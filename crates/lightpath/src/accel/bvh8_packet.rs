@@ -84,22 +84,29 @@ impl PacketLanes {
             parallel: [0; 3],
             one_octant: true,
         };
-        let mut d = [[1.0f32; PACKET]; 3];
-        for (i, ray) in rays.iter().enumerate() {
-            for (a, (o, d)) in p.origin.iter_mut().zip(&mut d).enumerate() {
-                o[i] = ray.origin[a];
-                d[i] = ray.direction[a];
-            }
-            p.t_min[i] = ray.t_min;
-        }
         p.active = ((1u32 << rays.len()) - 1) as u16;
+        // SAFETY: the caller guarantees AVX-512F; the lanes of `active` are `rays`.
+        let (o, d, t_min) = unsafe {
+            let field = |offset, default| gather_ray_field(rays, p.active, offset, default);
+            (
+                ORIGIN.map(|at| field(at, 0.0)),
+                DIRECTION.map(|at| field(at, 1.0)),
+                field(std::mem::offset_of!(Ray, t_min), 0.0),
+            )
+        };
+        // SAFETY: AVX-512F; stores to 16-lane arrays.
+        unsafe {
+            for (a, o) in o.into_iter().enumerate() {
+                _mm512_storeu_ps(p.origin[a].as_mut_ptr(), o);
+            }
+            _mm512_storeu_ps(p.t_min.as_mut_ptr(), t_min);
+        }
         // SAFETY (intrinsics): AVX-512F and DQ, as above; 16-lane arrays.
         unsafe {
             let one = _mm512_set1_ps(1.0);
             let max = _mm512_set1_ps(f32::MAX);
             let widen = _mm512_set1_ps(ROBUST_FAR);
-            for a in 0..3 {
-                let d = _mm512_loadu_ps(d[a].as_ptr());
+            for (a, d) in d.into_iter().enumerate() {
                 let inv = _mm512_div_ps(one, d);
                 let inv_far = _mm512_mul_ps(inv, widen);
                 // Infinite reciprocals (zero or tiny components) become ±MAX, with d's sign.
@@ -114,6 +121,52 @@ impl PacketLanes {
             }
         }
         p
+    }
+}
+
+/// Byte offsets of a ray's origin and direction coordinates in a [`Ray`].
+pub(crate) const ORIGIN: [usize; 3] = {
+    let at = std::mem::offset_of!(Ray, origin);
+    [at, at + 4, at + 8]
+};
+pub(crate) const DIRECTION: [usize; 3] = {
+    let at = std::mem::offset_of!(Ray, direction);
+    [at, at + 4, at + 8]
+};
+
+/// The `f32` at byte `offset` of each ray, lane `i` from `rays[i]` for the lanes of
+/// `active` (the first `rays.len()`), `default` in the others: one gather instead of a
+/// scalar store per ray into an array that is then loaded as a vector (a load that
+/// cannot be forwarded from sixteen smaller stores, and waits for them to retire).
+///
+/// # Safety
+/// The processor must support AVX-512F, and `active` must have no lane at or beyond
+/// `rays.len()`.
+#[inline]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
+pub(crate) unsafe fn gather_ray_field(
+    rays: &[Ray],
+    active: u16,
+    offset: usize,
+    default: f32,
+) -> std::arch::x86_64::__m512 {
+    use std::arch::x86_64::*;
+    const STRIDE: i32 = std::mem::size_of::<Ray>() as i32;
+    debug_assert!(u32::from(active) < 1 << rays.len() && offset + 4 <= STRIDE as usize);
+    let lanes = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+    let at = _mm512_add_epi32(
+        _mm512_mullo_epi32(lanes, _mm512_set1_epi32(STRIDE)),
+        _mm512_set1_epi32(offset as i32),
+    );
+    // SAFETY: the caller guarantees AVX-512F; only the lanes of `active` load, each
+    // inside its own ray of `rays`.
+    unsafe {
+        _mm512_mask_i32gather_ps::<1>(
+            _mm512_set1_ps(default),
+            active,
+            at,
+            rays.as_ptr() as *const f32 as _,
+        )
     }
 }
 

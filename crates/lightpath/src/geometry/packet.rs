@@ -16,6 +16,7 @@
 use super::mesh::{intersect_triangle_watertight, WatertightRay};
 use super::triangle_block::{TriangleBlock, BLOCK};
 use crate::accel::PacketLanes;
+use crate::accel::{gather_ray_field, DIRECTION};
 use crate::math::{gamma, Ray};
 
 pub use crate::accel::PACKET;
@@ -46,14 +47,18 @@ impl<'a> RayPacket<'a> {
         use std::arch::x86_64::*;
         // SAFETY: the caller guarantees AVX-512F and DQ; `PacketLanes::new` checks the count.
         let boxes = unsafe { PacketLanes::new(rays) };
-        let mut d = [[1.0f32; PACKET]; 3];
+        let active = boxes.active;
+        // SAFETY: the caller guarantees AVX-512F; the lanes of `active` are `rays`.
+        let (dv, t_max_lanes) = unsafe {
+            let field = |offset, default| gather_ray_field(rays, active, offset, default);
+            (
+                DIRECTION.map(|at| field(at, 1.0)),
+                field(std::mem::offset_of!(Ray, t_max), f32::NEG_INFINITY),
+            )
+        };
         let mut t_max = [f32::NEG_INFINITY; PACKET];
-        for (i, ray) in rays.iter().enumerate() {
-            for (a, d) in d.iter_mut().enumerate() {
-                d[i] = ray.direction[a];
-            }
-            t_max[i] = ray.t_max;
-        }
+        // SAFETY: AVX-512F; a store to a 16-lane array.
+        unsafe { std::arch::x86_64::_mm512_storeu_ps(t_max.as_mut_ptr(), t_max_lanes) };
         let mut p = RayPacket {
             axis4: [[0; PACKET]; 3],
             origin_permuted: [[0.0; PACKET]; 3],
@@ -64,7 +69,7 @@ impl<'a> RayPacket<'a> {
         // SAFETY (intrinsics): AVX-512F and DQ, as above; loads and stores of 16-lane arrays.
         unsafe {
             let ld = |a: &[f32; PACKET]| _mm512_loadu_ps(a.as_ptr());
-            let (dx, dy, dz) = (ld(&d[0]), ld(&d[1]), ld(&d[2]));
+            let [dx, dy, dz] = dv;
             let (ax, ay, az) = (_mm512_abs_ps(dx), _mm512_abs_ps(dy), _mm512_abs_ps(dz));
             // kz = 0 where |dx| is the largest, else 1 where |dy| > |dz|, else 2 (the
             // comparisons of `WatertightRay::new`).
