@@ -2,8 +2,9 @@
 //! register are rays, not triangles. Each lane runs the same watertight test as
 //! [`intersect_triangle_watertight`] with its own ray's axis permutation and shear, in
 //! the same operations and order (no fused multiply-adds), so a lane's answer equals
-//! the single-ray answer bit for bit; a lane whose edge function is exactly zero takes
-//! the scalar test, as the 4-lane block test does.
+//! the single-ray answer bit for bit; a lane inside the triangle's edges but not
+//! strictly (an edge function exactly zero) takes the scalar test, as the 4-lane block
+//! test does.
 //!
 //! The permutation is one `vpermps` per vertex coordinate: a block's vertex `v` is
 //! loaded as its twelve coordinates `x0..x3 y0..y3 z0..z3`, and lane `i` picks the
@@ -204,19 +205,21 @@ pub unsafe fn intersect_block<const ANY_HIT: bool, const COHERENT: bool>(
             let e0 = _mm512_sub_ps(_mm512_mul_ps(bx, cy), _mm512_mul_ps(by, cx));
             let e1 = _mm512_sub_ps(_mm512_mul_ps(cx, ay), _mm512_mul_ps(cy, ax));
             let e2 = _mm512_sub_ps(_mm512_mul_ps(ax, by), _mm512_mul_ps(ay, bx));
-            let eq = |e| _mm512_mask_cmp_ps_mask::<_CMP_EQ_OQ>(mask, e, zero);
-            let edge_zero = eq(e0) | eq(e1) | eq(e2);
-            let lt = |e| _mm512_cmp_ps_mask::<_CMP_LT_OQ>(e, zero);
-            let gt = |e| _mm512_cmp_ps_mask::<_CMP_GT_OQ>(e, zero);
-            let negative = lt(e0) | lt(e1) | lt(e2);
-            let positive = gt(e0) | gt(e1) | gt(e2);
-            let det = _mm512_add_ps(_mm512_add_ps(e0, e1), e2);
+            // The lanes inside all three edges, and those strictly inside, from the edge
+            // functions' minimum and maximum as in the block test (see the
+            // `triangle_block` module docs): a lane that is not inside is a miss; one
+            // inside but not strictly (on an edge) takes the scalar test below; every
+            // other lane left is strictly inside, and its determinant is not zero. Four
+            // compares into masks instead of ten (one port executes them all).
+            let e_min = _mm512_min_ps(_mm512_min_ps(e0, e1), e2);
+            let e_max = _mm512_max_ps(_mm512_max_ps(e0, e1), e2);
+            let inside = _mm512_mask_cmp_ps_mask::<_CMP_GE_OQ>(mask, e_min, zero)
+                | _mm512_mask_cmp_ps_mask::<_CMP_LE_OQ>(mask, e_max, zero);
             // Masks are chained through masked compares (each ANDs its predecessor).
-            let mut valid = _mm512_mask_cmp_ps_mask::<_CMP_NEQ_UQ>(
-                mask & !edge_zero & !(negative & positive),
-                det,
-                zero,
-            );
+            let mut valid = _mm512_mask_cmp_ps_mask::<_CMP_GT_OQ>(inside, e_min, zero)
+                | _mm512_mask_cmp_ps_mask::<_CMP_LT_OQ>(inside, e_max, zero);
+            let edge_zero = inside & !valid;
+            let det = _mm512_add_ps(_mm512_add_ps(e0, e1), e2);
             // No early exits: with sixteen unrelated rays the branches would mispredict.
             let (az, bz, cz) = (
                 _mm512_mul_ps(az, sz),
