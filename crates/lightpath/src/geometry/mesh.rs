@@ -222,11 +222,30 @@ impl WatertightRay {
         }
     }
 
+    /// Lane `i`'s constants of a packet, which [`RayPacket::new`] computes as `new` does
+    /// (the same comparisons and operations), for its ray `i`.
+    #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+    #[inline(always)]
+    pub(crate) fn from_lane(packet: &RayPacket<'_>, i: usize) -> Self {
+        // `axis4` holds 0, 4 or 8; the `min` keeps `axes`' promise without relying on it.
+        let axis = |a: usize| ((packet.axis4[a][i] / 4) as usize).min(2);
+        let lane = |v: &[[f32; PACKET]; 3]| [v[0][i], v[1][i], v[2][i]];
+        WatertightRay {
+            origin: packet.rays[i].origin,
+            kx: axis(0),
+            ky: axis(1),
+            kz: axis(2),
+            origin_permuted: lane(&packet.origin_permuted),
+            shear: Vec3::from_array(lane(&packet.shear)),
+        }
+    }
+
     /// The permutation `(kx, ky, kz)` that makes the largest direction component z.
     #[inline(always)]
     pub fn axes(&self) -> (usize, usize, usize) {
-        // SAFETY: `new` is the only constructor, and it sets each axis below 3. Saying so
-        // lets the per-block vertex loads `p[v][k]` go without bounds checks.
+        // SAFETY: `new` and `from_lane` are the only constructors, and both set each
+        // axis below 3. Saying so lets the per-block vertex loads `p[v][k]` go without
+        // bounds checks.
         unsafe {
             std::hint::assert_unchecked(self.kx < 3 && self.ky < 3 && self.kz < 3);
         }
@@ -376,14 +395,15 @@ pub(crate) struct LaneTriangle {
     pub flipped: bool,
 }
 
-/// Each ray `i` of `mask` alone: `test(wr, ray, closest)` with `rays[i]` cut at lane
-/// `i`'s `t_max` returns whether it hit (any hit), or records its closest hit in
+/// Each ray `i` of `mask` alone: `test(wr, ray, closest)` with the packet's ray `i` cut
+/// at lane `i`'s `t_max` (and its watertight constants from the packet's lane, not
+/// computed again) returns whether it hit (any hit), or records its closest hit in
 /// `closest`, which then lowers the lane's `t_max` and goes into `found`. Returns the
 /// rays hit.
 #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
 #[inline(always)]
 fn each_ray_alone<const ANY_HIT: bool>(
-    rays: &[Ray],
+    packet: &RayPacket<'_>,
     mask: u16,
     t_max: &mut [f32; PACKET],
     found: &mut PacketHits,
@@ -396,10 +416,10 @@ fn each_ray_alone<const ANY_HIT: bool>(
         bits &= bits - 1;
         let ray = Ray {
             t_max: t_max[i],
-            ..rays[i]
+            ..packet.rays[i]
         };
         let mut closest = None;
-        let mut hit = test(&WatertightRay::new(&ray), &ray, &mut closest);
+        let mut hit = test(&WatertightRay::from_lane(packet, i), &ray, &mut closest);
         if !ANY_HIT {
             if let Some((t, at, uv)) = closest {
                 t_max[i] = t;
@@ -1046,7 +1066,7 @@ impl TriangleMesh {
                 return unsafe {
                     self.subtree_ray_by_ray::<ANY_HIT>(
                         bvh,
-                        rays,
+                        &packet,
                         first,
                         mask,
                         t_max,
@@ -1063,7 +1083,7 @@ impl TriangleMesh {
             if rays_in * blocks.div_ceil(2) <= LEAF_RAYS_PER_BLOCK * blocks {
                 // SAFETY: the caller guarantees AVX-512F, which includes AVX2.
                 return unsafe {
-                    self.leaf_ray_by_ray::<ANY_HIT>(rays, first, count, mask, t_max, found)
+                    self.leaf_ray_by_ray::<ANY_HIT>(&packet, first, count, mask, t_max, found)
                 };
             }
             let mut any = 0;
@@ -1114,14 +1134,14 @@ impl TriangleMesh {
     #[allow(clippy::too_many_arguments)]
     unsafe fn leaf_ray_by_ray<const ANY_HIT: bool>(
         &self,
-        rays: &[Ray],
+        packet: &RayPacket<'_>,
         first: u32,
         count: u32,
         mask: u16,
         t_max: &mut [f32; PACKET],
         found: &mut PacketHits,
     ) -> u16 {
-        each_ray_alone::<ANY_HIT>(rays, mask, t_max, found, |wr, ray, closest| {
+        each_ray_alone::<ANY_HIT>(packet, mask, t_max, found, |wr, ray, closest| {
             if ANY_HIT {
                 return self.leaf_blocks::<true, false>(wr, ray, first, count);
             }
@@ -1140,7 +1160,7 @@ impl TriangleMesh {
     unsafe fn subtree_ray_by_ray<const ANY_HIT: bool>(
         &self,
         bvh: &crate::accel::Bvh8,
-        rays: &[Ray],
+        packet: &RayPacket<'_>,
         node: u32,
         mask: u16,
         t_max: &mut [f32; PACKET],
@@ -1148,7 +1168,7 @@ impl TriangleMesh {
         stats: &mut RayStats,
     ) -> u16 {
         let prefetch = |first| self.prefetch_block(first);
-        each_ray_alone::<ANY_HIT>(rays, mask, t_max, found, |wr, ray, closest| {
+        each_ray_alone::<ANY_HIT>(packet, mask, t_max, found, |wr, ray, closest| {
             if ANY_HIT {
                 return bvh.occluded_leaves_from(ray, (node, 0), stats, prefetch, |f, c| {
                     self.leaf_blocks::<true, false>(wr, ray, f, c)

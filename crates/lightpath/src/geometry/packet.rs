@@ -99,7 +99,9 @@ impl<'a> RayPacket<'a> {
             st(&mut p.origin_permuted[0], pick(x0, x1, o));
             st(&mut p.origin_permuted[1], pick(y0, y1, o));
             st(&mut p.origin_permuted[2], pick(z0, z1, o));
-            let neg = |v| _mm512_sub_ps(_mm512_setzero_ps(), v);
+            // Negation as `-x` negates (the sign bit flipped, so that a zero component
+            // gives the same signed zero as `WatertightRay::new`).
+            let neg = |v| _mm512_xor_ps(v, _mm512_set1_ps(-0.0));
             st(&mut p.shear[0], _mm512_div_ps(neg(pdx), pdz));
             st(&mut p.shear[1], _mm512_div_ps(neg(pdy), pdz));
             st(&mut p.shear[2], _mm512_div_ps(_mm512_set1_ps(1.0), pdz));
