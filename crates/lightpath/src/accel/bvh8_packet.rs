@@ -125,7 +125,7 @@ impl PacketLanes {
 }
 
 /// Byte offsets of a ray's origin and direction coordinates in a [`Ray`].
-pub(crate) const ORIGIN: [usize; 3] = {
+const ORIGIN: [usize; 3] = {
     let at = std::mem::offset_of!(Ray, origin);
     [at, at + 4, at + 8]
 };

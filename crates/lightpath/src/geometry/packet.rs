@@ -305,7 +305,7 @@ pub unsafe fn intersect_block<const ANY_HIT: bool, const COHERENT: bool>(
                 while bits != 0 {
                     let i = bits.trailing_zeros() as usize;
                     bits &= bits - 1;
-                    let wr = WatertightRay::new(&packet.rays[i]);
+                    let wr = WatertightRay::from_lane(packet, i);
                     if let Some((t, _, u, v)) = intersect_triangle_watertight(
                         &wr,
                         packet.boxes.t_min[i],
