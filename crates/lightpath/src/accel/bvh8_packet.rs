@@ -67,12 +67,14 @@ pub struct PacketLanes {
 }
 
 impl PacketLanes {
-    /// The lanes of up to [`PACKET`] rays.
+    /// The lanes of up to [`PACKET`] rays, and the rays' directions as the lanes of
+    /// three vectors (x, y, z; 1 beyond the rays), which the triangle tests' constants
+    /// are made from too.
     ///
     /// # Safety
     /// The processor must support AVX-512F and DQ.
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
-    pub unsafe fn new(rays: &[Ray]) -> PacketLanes {
+    pub unsafe fn new(rays: &[Ray]) -> (PacketLanes, [std::arch::x86_64::__m512; 3]) {
         use std::arch::x86_64::*;
         assert!(rays.len() <= PACKET, "at most {PACKET} rays per packet");
         let mut p = PacketLanes {
@@ -106,7 +108,7 @@ impl PacketLanes {
             let one = _mm512_set1_ps(1.0);
             let max = _mm512_set1_ps(f32::MAX);
             let widen = _mm512_set1_ps(ROBUST_FAR);
-            for (a, d) in d.into_iter().enumerate() {
+            for (a, &d) in d.iter().enumerate() {
                 let inv = _mm512_div_ps(one, d);
                 let inv_far = _mm512_mul_ps(inv, widen);
                 // Infinite reciprocals (zero or tiny components) become ±MAX, with d's sign.
@@ -120,7 +122,7 @@ impl PacketLanes {
                 p.one_octant &= negative == 0 || negative == p.active;
             }
         }
-        p
+        (p, d)
     }
 }
 
@@ -129,7 +131,7 @@ const ORIGIN: [usize; 3] = {
     let at = std::mem::offset_of!(Ray, origin);
     [at, at + 4, at + 8]
 };
-pub(crate) const DIRECTION: [usize; 3] = {
+const DIRECTION: [usize; 3] = {
     let at = std::mem::offset_of!(Ray, direction);
     [at, at + 4, at + 8]
 };

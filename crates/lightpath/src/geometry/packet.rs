@@ -16,8 +16,8 @@
 
 use super::mesh::{intersect_triangle_watertight, WatertightRay};
 use super::triangle_block::{TriangleBlock, BLOCK};
+use crate::accel::gather_ray_field;
 use crate::accel::PacketLanes;
-use crate::accel::{gather_ray_field, DIRECTION};
 use crate::math::{gamma, Ray};
 
 pub use crate::accel::PACKET;
@@ -47,14 +47,14 @@ impl<'a> RayPacket<'a> {
     pub unsafe fn new(rays: &'a [Ray]) -> (RayPacket<'a>, [f32; PACKET]) {
         use std::arch::x86_64::*;
         // SAFETY: the caller guarantees AVX-512F and DQ; `PacketLanes::new` checks the count.
-        let boxes = unsafe { PacketLanes::new(rays) };
-        let active = boxes.active;
+        let (boxes, dv) = unsafe { PacketLanes::new(rays) };
         // SAFETY: the caller guarantees AVX-512F; the lanes of `active` are `rays`.
-        let (dv, t_max_lanes) = unsafe {
-            let field = |offset, default| gather_ray_field(rays, active, offset, default);
-            (
-                DIRECTION.map(|at| field(at, 1.0)),
-                field(std::mem::offset_of!(Ray, t_max), f32::NEG_INFINITY),
+        let t_max_lanes = unsafe {
+            gather_ray_field(
+                rays,
+                boxes.active,
+                std::mem::offset_of!(Ray, t_max),
+                f32::NEG_INFINITY,
             )
         };
         let mut t_max = [f32::NEG_INFINITY; PACKET];
