@@ -203,8 +203,29 @@ impl Bvh {
     /// Builds a BVH over the given boxes. Boxes must be finite; empty boxes are allowed
     /// (they are never hit).
     pub fn build(boxes: &[Bounds3], settings: &BuildSettings) -> Bvh {
+        Bvh::build_from(boxes.len(), |i| boxes[i], settings)
+    }
+
+    /// [`Bvh::build`] over `n` boxes that `box_of` gives by index (called once each).
+    pub fn build_from(
+        n: usize,
+        box_of: impl Fn(usize) -> Bounds3 + Sync,
+        settings: &BuildSettings,
+    ) -> Bvh {
         let start = Instant::now();
-        let (nodes, prim_indices, max_depth) = if boxes.is_empty() {
+        let mut bvh = Bvh::build_unmeasured(n, box_of, settings);
+        bvh.stats = bvh.compute_stats(start.elapsed().as_secs_f64(), bvh.stats.max_depth);
+        bvh
+    }
+
+    /// [`Bvh::build_from`] without the statistics (a pass over the nodes) but the depth:
+    /// for the binary trees that the wide BVHs are collapsed from and then drop.
+    pub(super) fn build_unmeasured(
+        n: usize,
+        box_of: impl Fn(usize) -> Bounds3 + Sync,
+        settings: &BuildSettings,
+    ) -> Bvh {
+        let (nodes, prim_indices, max_depth) = if n == 0 {
             let empty = BvhNode {
                 min: [f32::INFINITY; 3],
                 max: [f32::NEG_INFINITY; 3],
@@ -213,15 +234,16 @@ impl Bvh {
             };
             (vec![empty], Vec::new(), 1)
         } else {
-            super::bvh_build::build(boxes, settings)
+            super::bvh_build::build_from(n, box_of, settings)
         };
-        let mut bvh = Bvh {
+        Bvh {
             nodes,
             prim_indices,
-            stats: BvhStats::default(),
-        };
-        bvh.stats = bvh.compute_stats(start.elapsed().as_secs_f64(), max_depth);
-        bvh
+            stats: BvhStats {
+                max_depth,
+                ..BvhStats::default()
+            },
+        }
     }
 
     /// Statistics of a built tree of depth `max_depth`, in one pass over the nodes.

@@ -384,7 +384,16 @@ pub struct Bvh8 {
 impl Bvh8 {
     /// Builds the binary SAH tree, then collapses it.
     pub fn build(boxes: &[Bounds3], settings: &BuildSettings) -> Bvh8 {
-        let (bvh, start) = build_binary(boxes, settings);
+        Bvh8::build_from(boxes.len(), |i| boxes[i], settings)
+    }
+
+    /// [`Bvh8::build`] over `n` boxes that `box_of` gives by index (called once each).
+    pub fn build_from(
+        n: usize,
+        box_of: impl Fn(usize) -> Bounds3 + Sync,
+        settings: &BuildSettings,
+    ) -> Bvh8 {
+        let (bvh, start) = build_binary(n, box_of, settings);
         let mut wide = Bvh8::collapse(&bvh);
         wide.build_seconds = start.elapsed().as_secs_f64();
         wide

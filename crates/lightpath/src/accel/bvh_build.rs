@@ -89,6 +89,12 @@ impl PrimRef {
         d.x * d.y + d.y * d.z + d.z * d.x
     }
 
+    /// Whether the box is empty (as [`Bounds3::is_empty`]; the w lanes are ignored).
+    #[inline]
+    fn is_empty(&self) -> bool {
+        self.min.truncate().cmpgt(self.max.truncate()).any()
+    }
+
     /// Twice the centroid (the w lane means nothing).
     #[inline(always)]
     fn centroid2(&self) -> Vec4 {
@@ -191,18 +197,6 @@ impl Range {
             r.grow(p);
         }
         r
-    }
-
-    /// In parallel above [`PAR_BIN_SIZE`] (exact, so the same result).
-    fn of_par(prims: &[PrimRef]) -> Range {
-        if prims.len() > PAR_BIN_SIZE {
-            prims
-                .par_chunks(BIN_CHUNK)
-                .map(Range::of)
-                .reduce(|| Range::EMPTY, Range::merge)
-        } else {
-            Range::of(prims)
-        }
     }
 }
 
@@ -1374,22 +1368,62 @@ fn relayout(nodes: &[BvhNode]) -> (Vec<BvhNode>, usize) {
 
 /// Builds the nodes and primitive order of a BVH over `boxes` (non-empty); returns them
 /// with the tree's depth (the root alone: 1).
-pub(super) fn build(
-    boxes: &[Bounds3],
+pub(super) fn build_from(
+    n: usize,
+    box_of: impl Fn(usize) -> Bounds3 + Sync,
     settings: &BuildSettings,
 ) -> (Vec<BvhNode>, Vec<u32>, usize) {
-    build_with(boxes, settings, crate::cpu::has_avx2())
+    build_with(n, box_of, settings, crate::cpu::has_avx2())
+}
+
+/// The primitive references of `n` boxes, the range of those that are not empty (which
+/// come first, in index order, then the empty ones, in index order) and how many are
+/// empty. One parallel pass writes the references and finds the range and the empty
+/// ones; only where there are empty boxes (rare) a second, serial one moves them last.
+fn prim_refs(n: usize, box_of: impl Fn(usize) -> Bounds3 + Sync) -> (Vec<PrimRef>, Range, usize) {
+    // In huge pages: 32 bytes a primitive, written once and then binned and partitioned
+    // level after level.
+    let mut prims: Vec<PrimRef> = super::memory::with_capacity_huge(n);
+    let (range, empty) = prims.spare_capacity_mut()[..n]
+        .par_chunks_mut(BIN_CHUNK)
+        .enumerate()
+        .map(|(c, chunk)| {
+            let (mut range, mut empty) = (Range::EMPTY, 0usize);
+            for (k, slot) in chunk.iter_mut().enumerate() {
+                let i = c * BIN_CHUNK + k;
+                let b = box_of(i);
+                let p = PrimRef::new(&b, i as u32);
+                if b.is_empty() {
+                    empty += 1;
+                } else {
+                    range.grow(&p);
+                }
+                slot.write(p);
+            }
+            (range, empty)
+        })
+        .reduce(|| (Range::EMPTY, 0), |(a, m), (b, k)| (a.merge(b), m + k));
+    // SAFETY: the chunks tile positions 0..n, and each position was written above.
+    unsafe { prims.set_len(n) };
+    if empty > 0 {
+        let (mut full, empties): (Vec<PrimRef>, Vec<PrimRef>) =
+            prims.into_iter().partition(|p| !p.is_empty());
+        full.extend(empties);
+        prims = full;
+    }
+    (prims, range, empty)
 }
 
 /// [`build`], with the AVX2 copies of the code (where the processor has them) or
 /// without.
 fn build_with(
-    boxes: &[Bounds3],
+    n: usize,
+    box_of: impl Fn(usize) -> Bounds3 + Sync,
     settings: &BuildSettings,
     avx2: bool,
 ) -> (Vec<BvhNode>, Vec<u32>, usize) {
     assert!(
-        u32::try_from(boxes.len()).is_ok(),
+        u32::try_from(n).is_ok(),
         "a BVH takes at most 2^32 primitives"
     );
     let builder = Builder {
@@ -1398,30 +1432,8 @@ fn build_with(
         avx2,
     };
     // Boxes that are empty go last, into a subtree of their own.
-    let empty = boxes.par_iter().filter(|b| b.is_empty()).count();
-    let mut prims: Vec<PrimRef> = if empty == 0 {
-        // In huge pages: 32 bytes a primitive, written once and then binned and
-        // partitioned level after level.
-        super::memory::collect_huge(
-            boxes
-                .par_iter()
-                .enumerate()
-                .map(|(i, b)| PrimRef::new(b, i as u32)),
-        )
-    } else {
-        let mut v: Vec<PrimRef> = Vec::with_capacity(boxes.len());
-        for pass_empty in [false, true] {
-            v.extend(
-                boxes
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, b)| b.is_empty() == pass_empty)
-                    .map(|(i, b)| PrimRef::new(b, i as u32)),
-            );
-        }
-        v
-    };
-    let full = boxes.len() - empty;
+    let (mut prims, range, empty) = prim_refs(n, box_of);
+    let full = n - empty;
     let (top, depth) = {
         let (full_prims, empty_prims) = prims.split_at_mut(full);
         let empty_tree = || {
@@ -1439,7 +1451,6 @@ fn build_with(
         if full == 0 {
             empty_tree()
         } else {
-            let range = Range::of_par(full_prims);
             if empty == 0 {
                 builder.build_top(full_prims, 0, &range, 0)
             } else {
@@ -1521,6 +1532,51 @@ mod tests {
         }
     }
 
+    /// The primitive references of a set of boxes: the non-empty ones first and the
+    /// empty ones last, each in index order, with the range of the non-empty ones (bit
+    /// for bit that of a serial pass over them) and the number of empty ones, for sizes
+    /// on both sides of the parallel chunks and with no, some and only empty boxes.
+    #[test]
+    fn prim_refs_put_empty_boxes_last() {
+        let mut rng = crate::sampling::Pcg32::new(3, 17);
+        for n in [
+            0usize,
+            1,
+            6,
+            BIN_CHUNK - 1,
+            BIN_CHUNK + 5,
+            3 * BIN_CHUNK + 777,
+        ] {
+            for empty_every in [0usize, 1, 7] {
+                let boxes: Vec<Bounds3> = (0..n)
+                    .map(|i| {
+                        if empty_every > 0 && i % empty_every == 0 {
+                            return Bounds3::EMPTY;
+                        }
+                        let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+                        let e = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 0.1;
+                        Bounds3::new(c - e, c + e)
+                    })
+                    .collect();
+                let (prims, range, empty) = prim_refs(n, |i| boxes[i]);
+                let is_empty = |i: &u32| boxes[*i as usize].is_empty();
+                let want: Vec<u32> = (0..n as u32)
+                    .filter(|i| !is_empty(i))
+                    .chain((0..n as u32).filter(is_empty))
+                    .collect();
+                let got: Vec<u32> = prims.iter().map(PrimRef::index).collect();
+                assert_eq!(got, want, "n = {n}, every {empty_every}");
+                assert_eq!(empty, (0..n as u32).filter(is_empty).count());
+                let full = Range::of(&prims[..n - empty]);
+                let bits = |r: &Range| {
+                    [r.bounds.min, r.bounds.max, r.cbounds.min, r.cbounds.max]
+                        .map(|v| v.truncate().to_array().map(f32::to_bits))
+                };
+                assert_eq!(bits(&range), bits(&full), "n = {n}, every {empty_every}");
+            }
+        }
+    }
+
     /// The AVX2 copy of the build makes the same tree as the portable code, bit for bit
     /// (node boxes, children, leaf ranges and primitive order), with the small ranges'
     /// scaled bins and without, on a mesh-like soup large enough for parallel binning
@@ -1561,8 +1617,8 @@ mod tests {
                     .collect();
                 (nodes, order, depth)
             };
-            let portable = bits(build_with(&boxes, &settings, false));
-            let avx2 = bits(build_with(&boxes, &settings, true));
+            let portable = bits(build_with(boxes.len(), |i| boxes[i], &settings, false));
+            let avx2 = bits(build_with(boxes.len(), |i| boxes[i], &settings, true));
             assert!(portable.0.len() > 1000);
             assert!(portable == avx2, "{settings:?}");
         }

@@ -60,7 +60,8 @@ pub struct Collapsed<const W: usize> {
 /// the build started: subtrees of one block become leaves in the collapse, so the
 /// binary build stops there (`BuildSettings::always_leaf`).
 pub fn build_binary(
-    boxes: &[crate::math::Bounds3],
+    n: usize,
+    box_of: impl Fn(usize) -> crate::math::Bounds3 + Sync,
     settings: &super::bvh::BuildSettings,
 ) -> (Bvh, std::time::Instant) {
     let start = std::time::Instant::now();
@@ -68,7 +69,7 @@ pub fn build_binary(
         always_leaf: LEAF_ALIGN,
         ..*settings
     };
-    (Bvh::build(boxes, &settings), start)
+    (Bvh::build_unmeasured(n, box_of, &settings), start)
 }
 
 /// A closest-hit leaf callback that hands each primitive of the leaf to `hit`.

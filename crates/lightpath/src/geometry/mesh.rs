@@ -447,6 +447,11 @@ impl TriangleMesh {
     /// Builds a mesh from raw data. Fails if an index is out of range, a position is not
     /// finite, or attribute arrays do not match the vertex count.
     pub fn new(data: MeshData, smooth: bool, accel: AccelKind) -> Result<TriangleMesh, String> {
+        crate::accel::in_pool(|| Self::new_in_pool(data, smooth, accel))
+    }
+
+    /// [`TriangleMesh::new`] on a thread of rayon's pool.
+    fn new_in_pool(data: MeshData, smooth: bool, accel: AccelKind) -> Result<TriangleMesh, String> {
         let n = data.positions.len();
         if !data.normals.is_empty() && data.normals.len() != n {
             return Err(format!("{} normals for {} vertices", data.normals.len(), n));
@@ -489,13 +494,14 @@ impl TriangleMesh {
             ));
         }
         let data = data.unweld_face_colors();
-        let boxes: Vec<Bounds3> = crate::accel::collect_huge(data.indices.par_iter().map(|t| {
-            let mut b = Bounds3::from_point(data.positions[t[0] as usize]);
-            b.expand(data.positions[t[1] as usize]);
-            b.expand(data.positions[t[2] as usize]);
+        let positions = &data.positions;
+        let accel = Accel::build_from(accel, data.indices.len(), |i| {
+            let t = &data.indices[i];
+            let mut b = Bounds3::from_point(positions[t[0] as usize]);
+            b.expand(positions[t[1] as usize]);
+            b.expand(positions[t[2] as usize]);
             b
-        }));
-        let accel = Accel::build(accel, &boxes);
+        });
         let blocks = match accel.leaf_order() {
             Some(order) => pack_blocks(&data.positions, &data.indices, order),
             None => Vec::new(),
