@@ -1475,6 +1475,26 @@ mod tests {
         assert!(TriangleMesh::new(nan, true, AccelKind::Bvh2).is_err());
     }
 
+    /// The parallel check finds the first offending item wherever it lies (in the
+    /// first chunk, past it, at a chunk's last item, with later offenders too), and none
+    /// where there is none.
+    #[test]
+    fn first_where_finds_the_first_offender() {
+        let n = 3 * CHECK_CHUNK + 5;
+        for bad in [
+            vec![],
+            vec![0],
+            vec![7, 9],
+            vec![CHECK_CHUNK - 1, CHECK_CHUNK, n - 1],
+            vec![2 * CHECK_CHUNK + 3, 3 * CHECK_CHUNK + 1],
+            vec![n - 1],
+        ] {
+            let items: Vec<bool> = (0..n).map(|i| bad.contains(&i)).collect();
+            assert_eq!(first_where(&items, |&b| b), bad.first().copied(), "{bad:?}");
+        }
+        assert_eq!(first_where(&[] as &[bool], |&b| b), None);
+    }
+
     /// Shoots rays through the shared vertices and edge points of a closed convex mesh,
     /// from inside and from outside in front of the point (so the ray crosses the surface
     /// there rather than grazing a silhouette): every one must hit.
