@@ -195,7 +195,12 @@ const COST_TEST: f32 = 0.3;
 /// The cost of a leaf of `count` primitives per unit of its box's surface area.
 fn leaf_cost(count: u64) -> f32 {
     let blocks = count.div_ceil(LEAF_ALIGN as u64);
-    let tests = blocks.div_ceil(u64::from(crate::cpu::leaf_blocks_per_test()));
+    // Blocks per test is 1 or 2: a shift, not a division (whose latency the planning of
+    // every binary node waited on).
+    let per_test = crate::cpu::leaf_blocks_per_test();
+    debug_assert!(per_test.is_power_of_two());
+    let shift = per_test.trailing_zeros();
+    let tests = (blocks + (1 << shift) - 1) >> shift;
     COST_LEAF + COST_TEST * tests as f32
 }
 
@@ -291,16 +296,22 @@ fn fill_plans<const W: usize>(
             )
         };
         let span = merge_spans(a, b);
-        // D(s, i) for i = 2..=W and the left share that reaches it.
-        let mut split = [(f32::INFINITY, 0usize); W];
-        for (i, best) in split.iter_mut().enumerate().skip(1) {
-            for k in 1..=i {
-                let c = ca[k - 1] + cb[i - k];
-                if c < best.0 {
-                    *best = (c, k);
-                }
+        // D(s, i) for i = 2..=W and the left share that reaches it: for each share k in
+        // increasing order, the sums for every i at once (independent lanes, selects
+        // rather than branches), a lower sum replacing the best so far, so the first k
+        // of equal sums wins.
+        let mut cost_i = [f32::INFINITY; W];
+        let mut share_i = [0u32; W];
+        for k in 1..W {
+            let a = ca[k - 1];
+            for i in k..W {
+                let c = a + cb[i - k];
+                let lower = c < cost_i[i];
+                share_i[i] = if lower { k as u32 } else { share_i[i] };
+                cost_i[i] = if lower { c } else { cost_i[i] };
             }
         }
+        let split: [(f32, usize); W] = std::array::from_fn(|i| (cost_i[i], share_i[i] as usize));
         let node = area * COST_NODE + split[W - 1].0;
         let leaf = span_range(span).map_or(f32::INFINITY, |(_, count)| {
             area * leaf_cost(u64::from(count))
