@@ -47,6 +47,7 @@ use crate::math::Bounds3;
 use glam::{BVec4A, Mat4, Vec3, Vec4};
 use rayon::prelude::*;
 use std::cmp::Reverse;
+use std::mem::MaybeUninit;
 
 /// Ranges above this many primitives split into two halves built in parallel; a range
 /// at or below it is built by one task.
@@ -1043,32 +1044,49 @@ impl Builder {
         bin_chunk_body(prims, binner, bins)
     }
 
+    /// The tree of a range, and its primitives' indices in their final order written to
+    /// `indices` (as each task ends, while its references are still in cache, rather
+    /// than in a pass of its own over all of them).
     fn build_top(
         &self,
         prims: &mut [PrimRef],
+        indices: &mut [MaybeUninit<u32>],
         offset: usize,
         range: &Range,
         depth: usize,
     ) -> (Top, usize) {
         if prims.len() <= TASK_SIZE {
             let (nodes, d) = self.build_task(prims, offset, range, depth);
+            write_indices(prims, indices);
             return (Top::Sub(nodes), d);
         }
         let mut scratch = Scratch::new(self.bins);
         match self.decide_top(prims, range, depth, &mut scratch) {
-            None => (
-                Top::Sub(vec![leaf(&range.bounds, offset, prims.len())]),
-                depth,
-            ),
+            None => {
+                write_indices(prims, indices);
+                (
+                    Top::Sub(vec![leaf(&range.bounds, offset, prims.len())]),
+                    depth,
+                )
+            }
             Some((mid, l, r)) => {
                 let (a, b) = prims.split_at_mut(mid);
+                let (ia, ib) = indices.split_at_mut(mid);
                 let ((lt, dl), (rt, dr)) = rayon::join(
-                    || self.build_top(a, offset, &l, depth + 1),
-                    || self.build_top(b, offset + mid, &r, depth + 1),
+                    || self.build_top(a, ia, offset, &l, depth + 1),
+                    || self.build_top(b, ib, offset + mid, &r, depth + 1),
                 );
                 (Top::Inner(range.bounds, Box::new([lt, rt])), dl.max(dr))
             }
         }
+    }
+}
+
+/// The primitives' indices, in their order, into `out` (as long).
+fn write_indices(prims: &[PrimRef], out: &mut [MaybeUninit<u32>]) {
+    assert_eq!(prims.len(), out.len());
+    for (o, p) in out.iter_mut().zip(prims) {
+        o.write(p.index());
     }
 }
 
@@ -1434,8 +1452,14 @@ fn build_with(
     // Boxes that are empty go last, into a subtree of their own.
     let (mut prims, range, empty) = prim_refs(n, box_of);
     let full = n - empty;
+    // Every position is written: the references of each task or leaf of the build's
+    // top, and those of the empty boxes.
+    let mut prim_indices: Vec<u32> = super::memory::with_capacity_huge(n);
     let (top, depth) = {
         let (full_prims, empty_prims) = prims.split_at_mut(full);
+        let (full_indices, empty_indices) =
+            prim_indices.spare_capacity_mut()[..n].split_at_mut(full);
+        write_indices(empty_prims, empty_indices);
         let empty_tree = || {
             let mut nodes = vec![PLACEHOLDER];
             let d = build_empty(
@@ -1452,9 +1476,9 @@ fn build_with(
             empty_tree()
         } else {
             if empty == 0 {
-                builder.build_top(full_prims, 0, &range, 0)
+                builder.build_top(full_prims, full_indices, 0, &range, 0)
             } else {
-                let (t, d) = builder.build_top(full_prims, 0, &range, 1);
+                let (t, d) = builder.build_top(full_prims, full_indices, 0, &range, 1);
                 let (e, de) = empty_tree();
                 (Top::Inner(range.bounds, Box::new([t, e])), d.max(de))
             }
@@ -1464,7 +1488,8 @@ fn build_with(
         Top::Sub(nodes) => nodes,
         top => flatten(top),
     };
-    let prim_indices = super::memory::collect_huge(prims.par_iter().map(PrimRef::index));
+    // SAFETY: every position below `n` was written above.
+    unsafe { prim_indices.set_len(n) };
     if settings.reinsertion_passes > 0 && settings.traversal_cost > 0.0 && empty == 0 {
         let mut optimised = nodes.clone();
         reinsert(&mut optimised, settings.reinsertion_passes, 1.0);
