@@ -394,6 +394,11 @@ fn sort_keys(keys: &mut [u64]) {
     keys.copy_from_slice(&sorted[..n]);
 }
 
+thread_local! {
+    /// A thread's scratch between tasks ([`Scratch::take`]).
+    static SCRATCH: std::cell::Cell<Option<Box<Scratch>>> = const { std::cell::Cell::new(None) };
+}
+
 /// Reused buffers of one task.
 struct Scratch {
     bins: Bins,
@@ -421,6 +426,21 @@ impl Scratch {
         }
     }
 
+    /// This thread's scratch for `bins` bins, left by an earlier task
+    /// ([`Scratch::put_back`]), or a new one: each holds about 60 KB of bins that a new
+    /// one fills in, and a build runs dozens of tasks per thread.
+    fn take(bins: usize) -> Box<Scratch> {
+        SCRATCH
+            .take()
+            .filter(|s| s.right.len() == bins)
+            .unwrap_or_else(|| Box::new(Scratch::new(bins)))
+    }
+
+    /// Leaves the scratch for this thread's next task.
+    fn put_back(self: Box<Scratch>) {
+        SCRATCH.set(Some(self));
+    }
+
     /// Puts a range in the sweep's order along `axis` and splits it after `k`.
     #[inline(always)]
     fn apply_order(&mut self, prims: &mut [PrimRef], axis: usize, k: usize) -> Split {
@@ -446,7 +466,7 @@ enum Plan {
 /// What one task builds into.
 struct Task {
     nodes: Vec<BvhNode>,
-    scratch: Scratch,
+    scratch: Box<Scratch>,
 }
 
 /// A range still to build: its primitives (`start..end` of the task's), bounds, depth
@@ -974,16 +994,19 @@ impl Builder {
         // A binary tree over n primitives has at most 2n − 1 nodes.
         let mut task = Task {
             nodes: Vec::with_capacity(2 * prims.len()),
-            scratch: Scratch::new(self.bins),
+            scratch: Scratch::take(self.bins),
         };
         task.nodes.push(PLACEHOLDER);
         #[cfg(target_arch = "x86_64")]
-        if self.avx2 {
+        let d = if self.avx2 {
             // SAFETY: `avx2` is set only where the processor has these features.
-            let d = unsafe { self.build_subtree_avx2(prims, offset, range, depth, &mut task) };
-            return (task.nodes, d);
-        }
+            unsafe { self.build_subtree_avx2(prims, offset, range, depth, &mut task) }
+        } else {
+            self.build_subtree(prims, offset, range, depth, &mut task)
+        };
+        #[cfg(not(target_arch = "x86_64"))]
         let d = self.build_subtree(prims, offset, range, depth, &mut task);
+        task.scratch.put_back();
         (task.nodes, d)
     }
 
@@ -1060,8 +1083,10 @@ impl Builder {
             write_indices(prims, indices);
             return (Top::Sub(nodes), d);
         }
-        let mut scratch = Scratch::new(self.bins);
-        match self.decide_top(prims, range, depth, &mut scratch) {
+        let mut scratch = Scratch::take(self.bins);
+        let decided = self.decide_top(prims, range, depth, &mut scratch);
+        scratch.put_back();
+        match decided {
             None => {
                 write_indices(prims, indices);
                 (
