@@ -31,10 +31,13 @@
 //!   build, every node, largest first, is taken out and put back where it adds the least
 //!   SAH cost; then the nodes are laid out depth first again.
 //!
-//! - **Memory.** The primitive references, the boxes and the flattened tree are asked
-//!   for in huge pages (`accel::memory`): a fresh array's first touch otherwise costs a
-//!   page fault per 4 KiB: a build of the 1.1M-triangle bunny in `lightpath bench` took
-//!   9,400 of them, and takes 1,650.
+//! - **Memory.** The primitive references, the primitive order and the flattened tree
+//!   are asked for in huge pages (`accel::memory`): a fresh array's first touch otherwise
+//!   costs a page fault per 4 KiB: a build of the 1.1M-triangle bunny in `lightpath
+//!   bench` took 9,400 of them, and takes 1,650. The boxes come by index
+//!   ([`build_from`]), straight into the references, with no array of their own, and
+//!   each thread keeps its task scratch from one task to the next ([`Scratch::take`];
+//!   a few hundred KB a thread, kept until the thread ends).
 //! - **AVX2.** Where the processor has it, the tasks, the partitions above them and the
 //!   parallel binning run in copies of the code compiled for AVX2
 //!   ([`Builder::build_task`]); the tree is the same bit for bit.
@@ -1409,7 +1412,8 @@ fn relayout(nodes: &[BvhNode]) -> (Vec<BvhNode>, usize) {
     (out, max_depth)
 }
 
-/// Builds the nodes and primitive order of a BVH over `boxes` (non-empty); returns them
+/// Builds the nodes and primitive order of a BVH over the `n` boxes (`n > 0`) that
+/// `box_of` gives by index (called once each); returns them
 /// with the tree's depth (the root alone: 1).
 pub(super) fn build_from(
     n: usize,
@@ -1457,7 +1461,7 @@ fn prim_refs(n: usize, box_of: impl Fn(usize) -> Bounds3 + Sync) -> (Vec<PrimRef
     (prims, range, empty)
 }
 
-/// [`build`], with the AVX2 copies of the code (where the processor has them) or
+/// [`build_from`], with the AVX2 copies of the code (where the processor has them) or
 /// without.
 fn build_with(
     n: usize,
