@@ -311,20 +311,19 @@ fn fill_plans<const W: usize>(
                 cost_i[i] = if lower { c } else { cost_i[i] };
             }
         }
-        let split: [(f32, usize); W] = std::array::from_fn(|i| (cost_i[i], share_i[i] as usize));
-        let node = area * COST_NODE + split[W - 1].0;
+        let node = area * COST_NODE + cost_i[W - 1];
         let leaf = span_range(span).map_or(f32::INFINITY, |(_, count)| {
             area * leaf_cost(u64::from(count))
         });
-        let mut plan = (split[W - 1].1 as u32) << (3 * (W - 1));
+        let mut plan = share_i[W - 1] << (3 * (W - 1));
         if leaf <= node {
             plan |= PLAN_LEAF;
         }
         let mut cost = [leaf.min(node); W];
         for i in 1..W {
-            if split[i].0 < cost[0] {
-                cost[i] = split[i].0;
-                plan |= (split[i].1 as u32) << (3 * (i - 1));
+            if cost_i[i] < cost[0] {
+                cost[i] = cost_i[i];
+                plan |= share_i[i] << (3 * (i - 1));
             }
         }
         (span, cost, plan)
