@@ -336,18 +336,19 @@ pub fn intersect_triangle_watertight(
 
 /// Takes the nearest of the lanes hit by the block(s) starting at block `b` as the closest
 /// hit `(t, leaf position, barycentrics)`, lowering `t_max`; returns whether any lane
-/// hit.
+/// hit. The lanes come by reference: a copy of the pair test's lanes is a 512-bit move
+/// in code compiled for AVX-512 (see [`super::triangle_block::PairHits`]).
 #[inline(always)]
 fn take_nearest<T: std::ops::Index<usize, Output = f32>>(
     b: usize,
-    (bits, t, b1, b2): &(u32, T, T, T),
+    (bits, t, b1, b2): (u32, &T, &T, &T),
     t_max: &mut f32,
     closest: &mut Option<(f32, usize, Vec2)>,
 ) -> bool {
-    if *bits == 0 {
+    if bits == 0 {
         return false;
     }
-    let lane = nearest_lane(*bits, t);
+    let lane = nearest_lane(bits, t);
     *t_max = t[lane];
     let at = b * BLOCK + lane;
     *closest = Some((t[lane], at, Vec2::new(b1[lane], b2[lane])));
@@ -898,11 +899,14 @@ impl TriangleMesh {
                 let (x, y) = (&self.blocks[b], &self.blocks[if last { b } else { b + 1 }]);
                 // SAFETY: `pair_blocks` is set only where the processor has the AVX2 tier.
                 let mut hits = unsafe { intersect_pair::<AVX2_CALLER>(x, y, wr, t_min, *t_max) };
-                hits.0 &= if last { 0xf } else { 0xff };
-                if MASKED {
-                    hits.0 = self.alpha_lanes(ray, [b, b + 1], hits.0, &hits.2, &hits.3);
+                hits.keep(if last { 0xf } else { 0xff });
+                if let Some([t, b1, b2]) = hits.lanes() {
+                    let mut bits = hits.bits();
+                    if MASKED {
+                        bits = self.alpha_lanes(ray, [b, b + 1], bits, b1, b2);
+                    }
+                    found |= take_nearest(b, (bits, t, b1, b2), t_max, closest);
                 }
-                found |= take_nearest(b, &hits, t_max, closest);
                 b += 2;
             }
             return found;
@@ -912,7 +916,7 @@ impl TriangleMesh {
             if MASKED {
                 hits.0 = self.alpha_lanes(ray, [b, b], hits.0, &hits.2, &hits.3);
             }
-            found |= take_nearest(b, &hits, t_max, closest);
+            found |= take_nearest(b, (hits.0, &hits.1, &hits.2, &hits.3), t_max, closest);
             b += 1;
         }
         found
@@ -938,10 +942,10 @@ impl TriangleMesh {
                 let (x, y) = (&self.blocks[b], &self.blocks[by]);
                 // SAFETY: `pair_blocks` is set only where the processor has the AVX2 tier.
                 let hits = unsafe { intersect_pair::<AVX2_CALLER>(x, y, wr, ray.t_min, ray.t_max) };
-                if hits.0 != 0
-                    && (!MASKED || self.alpha_lanes(ray, [b, by], hits.0, &hits.2, &hits.3) != 0)
-                {
-                    return true;
+                if let Some([_, b1, b2]) = hits.lanes() {
+                    if !MASKED || self.alpha_lanes(ray, [b, by], hits.bits(), b1, b2) != 0 {
+                        return true;
+                    }
                 }
                 b += 2;
             }
