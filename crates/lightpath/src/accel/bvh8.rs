@@ -17,7 +17,9 @@
 //!
 //! Traversal, per ray: the near and far plane of each axis are chosen once from the
 //! signs of the direction, so a node test is a subtraction and a multiplication per
-//! plane, then maxima and minima reduced as two-level trees (see [`NodeTest`]); unused
+//! plane, then maxima and minima reduced as two-level trees, on the distances' bits as
+//! integers, which takes a cycle per step where float operations take four (see
+//! [`NodeTest`]); unused
 //! slots hold empty boxes that no ray enters. The nearest hit child is visited next without
 //! touching the stack; with two hits the farther one is pushed; with more, they are
 //! pushed sorted, nearest on top. Entry distances stay on the stack and entries farther
@@ -26,7 +28,8 @@
 //! first, with no distances: the lowest slot next, the others pushed by one permuted
 //! eight-lane store ([`NodeTest::push_hits`]) rather than a loop over the mask's bits,
 //! and each entry it pops prefetches the one below it, the next to be visited.
-//! Rays with a zero direction component take a variant of the node test in which a ray
+//! Rays with a zero (or subnormal) direction component, a negative `t_min` or a
+//! non-finite origin take a general variant of the node test, in floats, in which a ray
 //! lying in a slab's plane (0·∞ = NaN) is inside that slab. There is no separate test
 //! of the root's own box: a ray that misses it misses all the root's children, which
 //! costs one node test.
@@ -41,7 +44,7 @@
 //! the single-ray ones; the price is the state saved and restored at every step, which
 //! makes streams slower where the data is in cache (coherent rays, small meshes).
 
-use super::bvh::{has_zero_component, BuildSettings, Bvh};
+use super::bvh::{BuildSettings, Bvh};
 use super::collapse::{any_prim, build_binary, collapse, each_prim, wide_cover, EMPTY};
 use super::RayStats;
 use crate::math::{Bounds3, Ray};
@@ -117,6 +120,18 @@ impl RayLanes {
     }
 }
 
+/// Whether `ray` takes the general node test (see [`NodeTest`]): unless every direction
+/// component is finite and at least the smallest normal float (so that its reciprocal
+/// is finite and not zero, and no plane distance is NaN: a zero component gives `0·∞`
+/// for a ray in a slab's plane), `t_min` is a non-negative float other than `-0` and
+/// the origin is finite.
+#[inline(always)]
+fn needs_general_test(ray: &Ray) -> bool {
+    let d = ray.direction.abs();
+    let direction_ok = d.cmpge(Vec3::splat(f32::MIN_POSITIVE)).all() && d.is_finite();
+    !(direction_ok && ray.t_min >= 0.0 && ray.t_min.is_sign_positive() && ray.origin.is_finite())
+}
+
 /// A node test: writes the entry distances of the eight children and returns the bit
 /// mask of those whose box the ray enters within `[t_min, t_max]`.
 ///
@@ -126,10 +141,24 @@ impl RayLanes {
 /// shortens the latency of a node test. Unused slots have empty boxes (minima `+∞`,
 /// maxima `-∞`), whose entry is `+∞` and exit `-∞` for any ray with a finite, non-zero
 /// direction component, so the plain test needs no separate mask for them; the
-/// axis-parallel variant, which orders each axis's two distances, masks them by count.
+/// general variant (`GENERAL`), which orders each axis's two distances, masks them by
+/// count.
+///
+/// The plain test reduces and compares the distances as the integers their bits are (a
+/// cycle per operation where float minima and maxima take four, on the chain of
+/// dependent operations that a ray's traversal waits on), as Embree does: for floats
+/// that are not NaN, the integer order of the bits is the float order among
+/// non-negative floats, puts every negative float below every non-negative one, and
+/// reverses the order among negative ones. So where `t_min` is a non-negative float (not
+/// `-0`), the integer maximum is exactly the float maximum whenever the float one is
+/// non-negative, and is `t_min` itself otherwise (where the float maximum would be
+/// `t_min` too); the entry is then non-negative and the comparison with the exit exact,
+/// whatever the exit's sign (a negative exit, exact or not, is below it either way). The
+/// general test takes the rays for which this does not hold, or whose distances can be
+/// NaN, with float operations; see [`needs_general_test`].
 trait NodeTest {
     /// The hit mask and the eight entry distances.
-    fn test<const AXIS_PARALLEL: bool>(
+    fn test<const GENERAL: bool>(
         node: &Bvh8Node,
         ray: &RayLanes,
         t_min: f32,
@@ -189,7 +218,7 @@ struct Portable;
 
 impl NodeTest for Portable {
     #[inline(always)]
-    fn test<const AXIS_PARALLEL: bool>(
+    fn test<const GENERAL: bool>(
         node: &Bvh8Node,
         ray: &RayLanes,
         t_min: f32,
@@ -204,7 +233,7 @@ impl NodeTest for Portable {
                 let o = Vec4::splat(ray.origin[a]);
                 let n = (lanes(ray.near[a]) - o) * Vec4::splat(ray.inv[a]);
                 let f = (lanes(ray.far[a]) - o) * Vec4::splat(ray.inv_far[a]);
-                if AXIS_PARALLEL {
+                if GENERAL {
                     let on_face = n.is_nan_mask() | f.is_nan_mask();
                     t0[a] = Vec4::select(on_face, Vec4::NEG_INFINITY, n.min(f));
                     t1[a] = Vec4::select(on_face, Vec4::INFINITY, n.max(f));
@@ -212,15 +241,30 @@ impl NodeTest for Portable {
                     (t0[a], t1[a]) = (n, f);
                 }
             }
+            let t_far = t_max * ROBUST_FAR;
+            if !GENERAL {
+                // On the floats' bits as integers, as the AVX2 test.
+                let bits = |v: Vec4| v.to_array().map(|x| x.to_bits() as i32);
+                let (n, f) = (t0.map(bits), t1.map(bits));
+                for k in 0..4 {
+                    let lo = n[0][k]
+                        .max(n[1][k])
+                        .max(n[2][k].max(t_min.to_bits() as i32));
+                    let hi = f[0][k]
+                        .min(f[1][k])
+                        .min(f[2][k].min(t_far.to_bits() as i32));
+                    near[4 * half + k] = f32::from_bits(lo as u32);
+                    mask |= u32::from(lo <= hi) << (4 * half + k);
+                }
+                continue;
+            }
             let lo = t0[0].max(t0[1]).max(t0[2].max(Vec4::splat(t_min)));
-            let hi = t1[0]
-                .min(t1[1])
-                .min(t1[2].min(Vec4::splat(t_max * ROBUST_FAR)));
+            let hi = t1[0].min(t1[1]).min(t1[2].min(Vec4::splat(t_far)));
             let hit = lo.cmple(hi).bitmask();
             lo.write_to_slice(&mut near[4 * half..4 * half + 4]);
             mask |= hit << (4 * half);
         }
-        if AXIS_PARALLEL {
+        if GENERAL {
             for (k, &c) in node.count.iter().enumerate() {
                 if c == EMPTY {
                     mask &= !(1 << k);
@@ -238,7 +282,7 @@ struct Avx2;
 #[cfg(target_arch = "x86_64")]
 impl NodeTest for Avx2 {
     #[inline(always)]
-    fn test<const AXIS_PARALLEL: bool>(
+    fn test<const GENERAL: bool>(
         node: &Bvh8Node,
         ray: &RayLanes,
         t_min: f32,
@@ -246,7 +290,7 @@ impl NodeTest for Avx2 {
     ) -> (u32, [f32; 8]) {
         // SAFETY: `Avx2` is only used by traversals entered after detecting the AVX2
         // tier (`crate::cpu`).
-        unsafe { avx2_test::<AXIS_PARALLEL>(node, ray, t_min, t_max) }
+        unsafe { avx2_test::<GENERAL>(node, ray, t_min, t_max) }
     }
 
     /// One permutation ([`PUSH_ORDER`]) and one eight-lane store per array, however
@@ -304,7 +348,7 @@ unsafe fn avx2_push(
 #[cfg(target_arch = "x86_64")]
 #[inline]
 #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-unsafe fn avx2_test<const AXIS_PARALLEL: bool>(
+unsafe fn avx2_test<const GENERAL: bool>(
     node: &Bvh8Node,
     ray: &RayLanes,
     t_min: f32,
@@ -326,7 +370,7 @@ unsafe fn avx2_test<const AXIS_PARALLEL: bool>(
         };
         let n = _mm256_mul_ps(_mm256_sub_ps(pn, o), _mm256_set1_ps(ray.inv[a]));
         let f = _mm256_mul_ps(_mm256_sub_ps(pf, o), _mm256_set1_ps(ray.inv_far[a]));
-        if AXIS_PARALLEL {
+        if GENERAL {
             let on_face = _mm256_or_ps(
                 _mm256_cmp_ps::<_CMP_UNORD_Q>(n, n),
                 _mm256_cmp_ps::<_CMP_UNORD_Q>(f, f),
@@ -341,29 +385,46 @@ unsafe fn avx2_test<const AXIS_PARALLEL: bool>(
             (t0[a], t1[a]) = (n, f);
         }
     }
-    let lo = _mm256_max_ps(
-        _mm256_max_ps(t0[0], t0[1]),
-        _mm256_max_ps(t0[2], _mm256_set1_ps(t_min)),
-    );
-    let hi = _mm256_min_ps(
-        _mm256_min_ps(t1[0], t1[1]),
-        _mm256_min_ps(t1[2], _mm256_set1_ps(t_max * ROBUST_FAR)),
-    );
-    let mut near = [0.0; 8];
-    // SAFETY: `near` holds eight floats.
-    unsafe { _mm256_storeu_ps(near.as_mut_ptr(), lo) };
-    let hit = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(lo, hi)) as u32;
-    if AXIS_PARALLEL {
+    if GENERAL {
+        let lo = _mm256_max_ps(
+            _mm256_max_ps(t0[0], t0[1]),
+            _mm256_max_ps(t0[2], _mm256_set1_ps(t_min)),
+        );
+        let hi = _mm256_min_ps(
+            _mm256_min_ps(t1[0], t1[1]),
+            _mm256_min_ps(t1[2], _mm256_set1_ps(t_max * ROBUST_FAR)),
+        );
+        let mut near = [0.0; 8];
+        // SAFETY: `near` holds eight floats.
+        unsafe { _mm256_storeu_ps(near.as_mut_ptr(), lo) };
+        let hit = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(lo, hi)) as u32;
         // SAFETY: `count` is 32 bytes at offset 224 of a 64-byte aligned node.
         let count = unsafe { _mm256_load_si256(node.count.as_ptr() as *const __m256i) };
         let unused = _mm256_cmpeq_epi32(count, _mm256_set1_epi32(-1));
-        (
+        return (
             hit & !(_mm256_movemask_ps(_mm256_castsi256_ps(unused)) as u32),
             near,
-        )
-    } else {
-        (hit, near)
+        );
     }
+    // The reductions and the comparison on the floats' bits as integers (see
+    // `NodeTest`): one cycle each where the float operations take four.
+    let bits = _mm256_castps_si256;
+    let lo = _mm256_max_epi32(
+        _mm256_max_epi32(bits(t0[0]), bits(t0[1])),
+        _mm256_max_epi32(bits(t0[2]), _mm256_set1_epi32(t_min.to_bits() as i32)),
+    );
+    let hi = _mm256_min_epi32(
+        _mm256_min_epi32(bits(t1[0]), bits(t1[1])),
+        _mm256_min_epi32(
+            bits(t1[2]),
+            _mm256_set1_epi32((t_max * ROBUST_FAR).to_bits() as i32),
+        ),
+    );
+    let mut near = [0.0; 8];
+    // SAFETY: `near` holds eight floats.
+    unsafe { _mm256_storeu_ps(near.as_mut_ptr(), _mm256_castsi256_ps(lo)) };
+    let miss = _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(lo, hi))) as u32;
+    (!miss & 0xff, near)
 }
 
 #[derive(Debug, Clone)]
@@ -652,7 +713,7 @@ impl Bvh8 {
             // SAFETY: the AVX2 tier was detected when the tree was built.
             return unsafe { self.intersect_avx2(ray, start, stats, prefetch_leaf, leaf) };
         }
-        if has_zero_component(ray.direction) {
+        if needs_general_test(ray) {
             self.intersect_impl::<Portable, true, P, F>(ray, start, stats, prefetch_leaf, leaf)
         } else {
             self.intersect_impl::<Portable, false, P, F>(ray, start, stats, prefetch_leaf, leaf)
@@ -669,7 +730,7 @@ impl Bvh8 {
         prefetch_leaf: P,
         leaf: F,
     ) -> bool {
-        if has_zero_component(ray.direction) {
+        if needs_general_test(ray) {
             self.intersect_impl::<Avx2, true, P, F>(ray, start, stats, prefetch_leaf, leaf)
         } else {
             self.intersect_impl::<Avx2, false, P, F>(ray, start, stats, prefetch_leaf, leaf)
@@ -707,7 +768,7 @@ impl Bvh8 {
             // SAFETY: the AVX2 tier was detected when the tree was built.
             return unsafe { self.occluded_avx2(ray, start, stats, prefetch_leaf, blocks) };
         }
-        if has_zero_component(ray.direction) {
+        if needs_general_test(ray) {
             self.occluded_impl::<Portable, true, P, F>(ray, start, stats, prefetch_leaf, blocks)
         } else {
             self.occluded_impl::<Portable, false, P, F>(ray, start, stats, prefetch_leaf, blocks)
@@ -724,7 +785,7 @@ impl Bvh8 {
         prefetch_leaf: P,
         blocks: F,
     ) -> bool {
-        if has_zero_component(ray.direction) {
+        if needs_general_test(ray) {
             self.occluded_impl::<Avx2, true, P, F>(ray, start, stats, prefetch_leaf, blocks)
         } else {
             self.occluded_impl::<Avx2, false, P, F>(ray, start, stats, prefetch_leaf, blocks)
@@ -732,7 +793,7 @@ impl Bvh8 {
     }
 
     #[inline(always)]
-    fn intersect_impl<T: NodeTest, const AXIS_PARALLEL: bool, P, F>(
+    fn intersect_impl<T: NodeTest, const GENERAL: bool, P, F>(
         &self,
         ray: &Ray,
         start: (u32, u32),
@@ -765,7 +826,7 @@ impl Bvh8 {
             } else {
                 let node = &self.nodes[cur.child as usize];
                 Self::prefetch_refs(node);
-                let (mask, near) = T::test::<AXIS_PARALLEL>(node, &lanes, ray.t_min, t_max);
+                let (mask, near) = T::test::<GENERAL>(node, &lanes, ray.t_min, t_max);
                 if mask != 0 {
                     cur = self.descend(node, mask, &near, &mut stack, &mut sp, &prefetch_leaf);
                     continue;
@@ -789,7 +850,7 @@ impl Bvh8 {
     }
 
     #[inline(always)]
-    fn occluded_impl<T: NodeTest, const AXIS_PARALLEL: bool, P, F>(
+    fn occluded_impl<T: NodeTest, const GENERAL: bool, P, F>(
         &self,
         ray: &Ray,
         start: (u32, u32),
@@ -820,7 +881,7 @@ impl Bvh8 {
             } else {
                 let node = &self.nodes[child as usize];
                 Self::prefetch_refs(node);
-                let (mask, _) = T::test::<AXIS_PARALLEL>(node, &lanes, ray.t_min, ray.t_max);
+                let (mask, _) = T::test::<GENERAL>(node, &lanes, ray.t_min, ray.t_max);
                 if mask != 0 {
                     // The lowest slot next, the others on the stack, the next lowest on top.
                     let k = mask.trailing_zeros() as usize;
@@ -890,7 +951,7 @@ impl<X> Flight<X> {
         Flight {
             lanes: RayLanes::new(ray),
             t_max: ray.t_max,
-            axis_parallel: has_zero_component(ray.direction),
+            axis_parallel: needs_general_test(ray),
             any: false,
             ray: index,
             cur: Entry {
@@ -1224,6 +1285,74 @@ mod tests {
     #[test]
     fn matches_the_list_on_every_test_scene() {
         check_kind_on_all_scenes(AccelKind::Bvh8);
+    }
+
+    /// Both node tests (the plain one on integer bits and the general one) visit every
+    /// leaf whose box the ray enters within `[t_min, t_max]`, by an exact slab test in
+    /// f64, for rays of every kind: `t_min` positive, `+0`, `-0` and negative, finite
+    /// ranges, direction components zero, subnormal or huge, origins inside the boxes.
+    #[test]
+    fn visits_every_box_the_ray_enters() {
+        let boxes = crate::accel::bvh::tests::random_boxes(3000, 23);
+        let fast = Bvh8::build(&boxes, &BuildSettings::default());
+        let portable = fast.clone().without_avx2();
+        let enters = |b: &Bounds3, ray: &Ray| {
+            let (mut lo, mut hi) = (ray.t_min as f64, ray.t_max as f64);
+            for a in 0..3 {
+                let (o, d) = (ray.origin[a] as f64, ray.direction[a] as f64);
+                let (p0, p1) = (b.min[a] as f64, b.max[a] as f64);
+                if d == 0.0 {
+                    if o < p0 || o > p1 {
+                        return false;
+                    }
+                    continue;
+                }
+                let (t0, t1) = ((p0 - o) / d, (p1 - o) / d);
+                lo = lo.max(t0.min(t1));
+                hi = hi.min(t0.max(t1));
+            }
+            lo <= hi
+        };
+        let mut rng = crate::sampling::Pcg32::new(8, 3);
+        let mut entered = 0;
+        for i in 0..4000 {
+            let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 14.0 - 2.0;
+            // Towards a point among the boxes.
+            let aim = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 10.0;
+            let mut d = (aim - o) * (0.1 + rng.next_f32());
+            match i % 6 {
+                1 => d.x = 0.0,
+                2 => d.y = 1e-40,
+                3 => d.z = -3e38,
+                _ => {}
+            }
+            let t_min = [0.0, -0.0, -1.5, 0.7, 2.0][i % 5];
+            let t_max = if i % 3 == 0 { 3.0 } else { f32::INFINITY };
+            let ray = Ray::with_range(o, d, t_min, t_max);
+            let want: Vec<u32> = (0..boxes.len() as u32)
+                .filter(|&p| enters(&boxes[p as usize], &ray))
+                .collect();
+            entered += want.len();
+            for tree in [&fast, &portable] {
+                let mut seen = Vec::new();
+                tree.intersect(&ray, &mut RayStats::default(), |p, _| {
+                    seen.push(p);
+                    false
+                });
+                seen.sort_unstable();
+                let missed: Vec<_> = want
+                    .iter()
+                    .filter(|p| seen.binary_search(p).is_err())
+                    .collect();
+                assert!(missed.is_empty(), "ray {i} {ray:?} skips boxes {missed:?}");
+                let any = tree.occluded(&ray, &mut RayStats::default(), |p| want.contains(&p));
+                assert_eq!(any, !want.is_empty(), "ray {i} {ray:?}");
+            }
+        }
+        assert!(
+            entered > 5000,
+            "only {entered} boxes entered: the test is too weak"
+        );
     }
 
     /// The portable and the AVX2 node tests give the same hits, distances and traversal
