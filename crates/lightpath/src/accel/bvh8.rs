@@ -577,9 +577,10 @@ impl Bvh8 {
     /// lower slot. Up to four children are sorted by a network of compare-exchanges on
     /// keys that order like the distances ([`order_key`]), which compiles to conditional
     /// moves: the order of the children of an incoherent ray is a coin toss that a branch
-    /// predictor loses.
+    /// predictor loses. Unless `GENERAL` (the plain node test's distances, never negative
+    /// nor `-0`), the distances' bits order like them as they are.
     #[inline(always)]
-    fn descend<P: Fn(u32)>(
+    fn descend<const GENERAL: bool, P: Fn(u32)>(
         &self,
         node: &Bvh8Node,
         mask: u32,
@@ -596,7 +597,13 @@ impl Bvh8 {
                 dist: near[k],
             }
         };
-        let key = |k: u32| order_key(near[k as usize], k);
+        let key = |k: u32| {
+            if GENERAL {
+                order_key(near[k as usize], k)
+            } else {
+                (u64::from(near[k as usize].to_bits()) << 32) | u64::from(k)
+            }
+        };
         let a = key(mask.trailing_zeros());
         let rest = mask & (mask - 1);
         if rest == 0 {
@@ -828,7 +835,14 @@ impl Bvh8 {
                 Self::prefetch_refs(node);
                 let (mask, near) = T::test::<GENERAL>(node, &lanes, ray.t_min, t_max);
                 if mask != 0 {
-                    cur = self.descend(node, mask, &near, &mut stack, &mut sp, &prefetch_leaf);
+                    cur = self.descend::<GENERAL, P>(
+                        node,
+                        mask,
+                        &near,
+                        &mut stack,
+                        &mut sp,
+                        &prefetch_leaf,
+                    );
                     continue;
                 }
             }
@@ -1202,7 +1216,7 @@ impl Bvh8 {
                     }
                     entry(mask.trailing_zeros())
                 } else {
-                    self.descend(node, mask, &near, stack, &mut f.sp, prefetch_leaf)
+                    self.descend::<true, P>(node, mask, &near, stack, &mut f.sp, prefetch_leaf)
                 };
                 self.prefetch(next.child, next.count, prefetch_leaf);
                 f.cur = next;
@@ -1231,7 +1245,8 @@ mod tests {
 
     /// The descent returns the nearest child and leaves the others on the stack in the
     /// order a sort by (distance, slot) gives, for every mask and for distances with
-    /// ties, signed zeros, negatives and infinities.
+    /// ties, signed zeros, negatives and infinities (the general node test's), and with
+    /// their magnitudes for the plain test's keys.
     #[test]
     fn descent_sorts_children_by_distance_then_slot() {
         let mut node = EMPTY_NODE;
@@ -1245,7 +1260,8 @@ mod tests {
         );
         let values = [0.0, -0.0, 1.0, 1.0, 2.5, -3.0, f32::INFINITY, 1e-30];
         let mut rng = crate::sampling::Pcg32::new(3, 4);
-        for round in 0..4000 {
+        for round in 0..8000 {
+            let general = round % 4 < 2;
             let mut near = [0.0f32; 8];
             for d in near.iter_mut() {
                 *d = if round % 2 == 0 {
@@ -1253,14 +1269,21 @@ mod tests {
                 } else {
                     rng.next_f32() * 4.0 - 1.0
                 };
+                if !general {
+                    *d = d.abs();
+                }
             }
-            let mask = 1 + round as u32 % 255;
+            let mask = 1 + (round / 4) as u32 % 255;
             let mut expected: Vec<usize> = (0..8).filter(|k| mask & (1 << k) != 0).collect();
             expected.sort_by(|&a, &b| near[a].total_cmp(&near[b]).then(a.cmp(&b)));
             // `total_cmp` orders -0 before +0, as the keys do.
             let mut stack = [const { MaybeUninit::<Entry>::uninit() }; 16];
             let mut sp = 3;
-            let first = tree.descend(&node, mask, &near, &mut stack, &mut sp, &|_| {});
+            let first = if general {
+                tree.descend::<true, _>(&node, mask, &near, &mut stack, &mut sp, &|_| {})
+            } else {
+                tree.descend::<false, _>(&node, mask, &near, &mut stack, &mut sp, &|_| {})
+            };
             let mut got = vec![first];
             while sp > 3 {
                 sp -= 1;
