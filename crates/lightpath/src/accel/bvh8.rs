@@ -1319,23 +1319,8 @@ mod tests {
         let boxes = crate::accel::bvh::tests::random_boxes(3000, 23);
         let fast = Bvh8::build(&boxes, &BuildSettings::default());
         let portable = fast.clone().without_avx2();
-        let enters = |b: &Bounds3, ray: &Ray| {
-            let (mut lo, mut hi) = (ray.t_min as f64, ray.t_max as f64);
-            for a in 0..3 {
-                let (o, d) = (ray.origin[a] as f64, ray.direction[a] as f64);
-                let (p0, p1) = (b.min[a] as f64, b.max[a] as f64);
-                if d == 0.0 {
-                    if o < p0 || o > p1 {
-                        return false;
-                    }
-                    continue;
-                }
-                let (t0, t1) = ((p0 - o) / d, (p1 - o) / d);
-                lo = lo.max(t0.min(t1));
-                hi = hi.min(t0.max(t1));
-            }
-            lo <= hi
-        };
+        let enters =
+            |b: &Bounds3, ray: &Ray| crate::accel::wide_bvh::tests::exact_entry(b, ray).is_some();
         let mut rng = crate::sampling::Pcg32::new(8, 3);
         let mut entered = 0;
         for i in 0..4000 {

@@ -408,7 +408,7 @@ impl Bvh4 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// The shared accelerator property test: closest hits and occlusion equal the
@@ -424,7 +424,7 @@ mod tests {
 
     /// The exact entry distance of a ray into a box (inclusive faces), in f64, with a
     /// zero direction component handled as "inside the slab or not".
-    fn exact_entry(b: &Bounds3, ray: &Ray) -> Option<f32> {
+    pub(crate) fn exact_entry(b: &Bounds3, ray: &Ray) -> Option<f32> {
         if b.is_empty() {
             return None;
         }
