@@ -950,7 +950,8 @@ pub const STREAM_GROUP: usize = 8;
 struct Flight<X> {
     lanes: RayLanes,
     t_max: f32,
-    axis_parallel: bool,
+    /// Whether the ray takes the general node test ([`needs_general_test`]).
+    general: bool,
     any: bool,
     ray: usize,
     cur: Entry,
@@ -965,7 +966,7 @@ impl<X> Flight<X> {
         Flight {
             lanes: RayLanes::new(ray),
             t_max: ray.t_max,
-            axis_parallel: needs_general_test(ray),
+            general: needs_general_test(ray),
             any: false,
             ray: index,
             cur: Entry {
@@ -1191,7 +1192,7 @@ impl Bvh8 {
             }
         } else {
             let node = &self.nodes[cur.child as usize];
-            let (mask, near) = if f.axis_parallel {
+            let (mask, near) = if f.general {
                 T::test::<true>(node, &f.lanes, ray.t_min, f.t_max)
             } else {
                 T::test::<false>(node, &f.lanes, ray.t_min, f.t_max)
