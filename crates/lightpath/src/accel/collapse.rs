@@ -187,10 +187,17 @@ fn model_cost<const W: usize>(root_area: f64, tree: &Collapsed<W>) -> f64 {
 /// two halves (a Zen 1 EPYC), a pair costs two blocks: pricing each block, with lone
 /// blocks tested at 4 lanes rather than paired with themselves, traced the Stanford
 /// bunny's rays 2-11% faster on one thread than pairs did (the median of five
-/// alternated rounds; 57.9 bytes per triangle rather than 54.8).
+/// alternated rounds; 57.9 bytes per triangle rather than 54.8). On an Intel Xeon with
+/// AVX-512 (2 MB of L2 per core, a slow shared L3), a pair priced at 0.5 rather than 0.3
+/// (slightly smaller leaves: the bunny's 54.8 bytes per triangle become 56.6) traced the
+/// Stanford bunny's diffuse rays 2.4% faster and its shadow rays 2.9%, its primary and
+/// random rays the same (within 0.3%; the medians of six paired runs, both builds at once
+/// on the two CPUs), and bunny_loop2's sets within 2% either way (diffuse +1.8%, random
+/// -1.1%); 0.2 and 0.8 were no better than 0.3, and the Cornell box render took the same
+/// time at 0.3 and 0.6.
 const COST_NODE: f32 = 1.0;
 const COST_LEAF: f32 = 0.5;
-const COST_TEST: f32 = 0.3;
+const COST_TEST: f32 = 0.5;
 
 /// The cost of a leaf of `count` primitives per unit of its box's surface area.
 fn leaf_cost(count: u64) -> f32 {
