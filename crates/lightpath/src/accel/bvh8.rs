@@ -150,11 +150,28 @@ impl RayLanes {
 /// is finite and not zero, and no plane distance is NaN: a zero component gives `0·∞`
 /// for a ray in a slab's plane), `t_min` is a non-negative float other than `-0` and
 /// the origin is finite.
+///
+/// Each condition is a range of the float's bits, and all seven are combined without a
+/// branch: every ray pays for this test before its first node, and most rays that miss
+/// the mesh pay for little else.
 #[inline(always)]
 fn needs_general_test(ray: &Ray) -> bool {
-    let d = ray.direction.abs();
-    let direction_ok = d.cmpge(Vec3::splat(f32::MIN_POSITIVE)).all() && d.is_finite();
-    !(direction_ok && ray.t_min >= 0.0 && ray.t_min.is_sign_positive() && ray.origin.is_finite())
+    let abs = |x: f32| x.to_bits() & 0x7fff_ffff;
+    // Finite and at least `MIN_POSITIVE` in magnitude (NaN fails).
+    let normal = |x: f32| abs(x).wrapping_sub(0x0080_0000) < 0x7f80_0000 - 0x0080_0000;
+    // Finite (NaN fails).
+    let finite = |x: f32| abs(x) < 0x7f80_0000;
+    let (d, o) = (ray.direction, ray.origin);
+    // `+0` up to `+∞`: neither negative, `-0` nor NaN.
+    let t_min_ok = ray.t_min.to_bits() <= 0x7f80_0000;
+    let ok = normal(d.x)
+        & normal(d.y)
+        & normal(d.z)
+        & finite(o.x)
+        & finite(o.y)
+        & finite(o.z)
+        & t_min_ok;
+    !ok
 }
 
 /// A node test: writes the entry distances of the eight children and returns the bit
@@ -1377,6 +1394,63 @@ mod tests {
     /// leaf whose box the ray enters within `[t_min, t_max]`, by an exact slab test in
     /// f64, for rays of every kind: `t_min` positive, `+0`, `-0` and negative, finite
     /// ranges, direction components zero, subnormal or huge, origins inside the boxes.
+    /// The bit-range form of `needs_general_test` against its definition in float
+    /// comparisons, for each field of the ray at every edge of its range.
+    #[test]
+    fn general_test_choice_matches_its_definition() {
+        let reference = |ray: &Ray| {
+            let d = ray.direction.abs();
+            let direction_ok = d.cmpge(Vec3::splat(f32::MIN_POSITIVE)).all() && d.is_finite();
+            !(direction_ok
+                && ray.t_min >= 0.0
+                && ray.t_min.is_sign_positive()
+                && ray.origin.is_finite())
+        };
+        let edges = [
+            0.0,
+            -0.0,
+            f32::MIN_POSITIVE,
+            -f32::MIN_POSITIVE,
+            f32::MIN_POSITIVE / 2.0,
+            -f32::from_bits(1),
+            f32::from_bits(1),
+            1.0,
+            -1.0,
+            f32::MAX,
+            -f32::MAX,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            -f32::NAN,
+            f32::from_bits(0x7f80_0001),
+        ];
+        let base = Ray {
+            origin: Vec3::new(0.5, -2.0, 3.0),
+            direction: Vec3::new(0.3, -0.4, 0.5),
+            t_min: 0.0,
+            t_max: f32::INFINITY,
+        };
+        let mut general = 0;
+        for field in 0..7 {
+            for &v in &edges {
+                let mut ray = base;
+                match field {
+                    0..=2 => ray.origin[field] = v,
+                    3..=5 => ray.direction[field - 3] = v,
+                    _ => ray.t_min = v,
+                }
+                assert_eq!(
+                    needs_general_test(&ray),
+                    reference(&ray),
+                    "field {field}, {v:?}"
+                );
+                general += usize::from(reference(&ray));
+            }
+        }
+        // Every field has values on both sides.
+        assert!(general > 7 * 3 && general < 7 * edges.len() - 7 * 3);
+    }
+
     #[test]
     fn visits_every_box_the_ray_enters() {
         let boxes = crate::accel::bvh::tests::random_boxes(3000, 23);
