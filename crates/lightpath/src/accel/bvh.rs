@@ -16,6 +16,7 @@ use super::RayStats;
 use crate::math::{Bounds3, Ray};
 use glam::Vec3;
 use rayon::prelude::*;
+use std::mem::MaybeUninit;
 use std::time::Instant;
 
 /// A 32-byte BVH node; see the module docs for the layout.
@@ -348,7 +349,7 @@ impl Bvh {
         if self.prim_indices.is_empty() {
             return false;
         }
-        let mut stack: [(u32, f32); STACK_SIZE] = [(0, 0.0); STACK_SIZE];
+        let mut stack = [const { MaybeUninit::<(u32, f32)>::uninit() }; STACK_SIZE];
         let mut sp = 0usize;
         let mut current =
             match self.nodes[0].hit::<AXIS_PARALLEL>(origin, inv_dir, ray.t_min, t_max) {
@@ -378,7 +379,7 @@ impl Bvh {
                         } else {
                             (l + 1, l, dl)
                         };
-                        stack[sp] = (far, dfar);
+                        stack[sp].write((far, dfar));
                         sp += 1;
                         current = near;
                         continue;
@@ -400,7 +401,8 @@ impl Bvh {
                     return any;
                 }
                 sp -= 1;
-                let (n, d) = stack[sp];
+                // SAFETY: every entry below the old `sp` was written.
+                let (n, d) = unsafe { stack[sp].assume_init() };
                 if d <= t_max {
                     current = n;
                     break;
@@ -435,7 +437,7 @@ impl Bvh {
         if self.prim_indices.is_empty() {
             return false;
         }
-        let mut stack = [0u32; STACK_SIZE];
+        let mut stack = [const { MaybeUninit::<u32>::uninit() }; STACK_SIZE];
         let mut sp = 0usize;
         if self.nodes[0]
             .hit::<AXIS_PARALLEL>(ray.origin, inv_dir, ray.t_min, ray.t_max)
@@ -466,7 +468,7 @@ impl Bvh {
                     .is_some();
                 match (hl, hr) {
                     (true, true) => {
-                        stack[sp] = l + 1;
+                        stack[sp].write(l + 1);
                         sp += 1;
                         current = l;
                         continue;
@@ -486,7 +488,8 @@ impl Bvh {
                 return false;
             }
             sp -= 1;
-            current = stack[sp];
+            // SAFETY: every entry below the old `sp` was written.
+            current = unsafe { stack[sp].assume_init() };
         }
     }
 
