@@ -632,8 +632,9 @@ impl Bvh8 {
         sp: &mut usize,
         prefetch_leaf: &P,
     ) -> Entry {
-        let entry = |key: u64| {
-            let k = key as usize & 7;
+        // The entry of slot `k`.
+        let entry = |k: u32| {
+            let k = k as usize;
             Entry {
                 child: node.child[k],
                 count: node.count[k],
@@ -650,11 +651,13 @@ impl Bvh8 {
             }
         };
         let key = |k: u32| (u64::from(ord(k)) << 32) | u64::from(k);
+        // The slot a key holds.
+        let slot = |key: u64| key as u32 & 7;
         let a = key(mask.trailing_zeros());
         let rest = mask & (mask - 1);
         if rest == 0 {
             // One child: descend without the stack.
-            return entry(a);
+            return entry(slot(a));
         }
         // Two children (the most common case after one): the nearer (the next node,
         // which the traversal waits for) is selected by one comparison from both slots'
@@ -666,12 +669,12 @@ impl Bvh8 {
         let rest = rest & (rest - 1);
         if rest == 0 {
             let ka = mask.trailing_zeros();
-            let (ea, eb) = (entry(u64::from(ka)), entry(u64::from(kb)));
+            let (ea, eb) = (entry(ka), entry(kb));
             let (first, second) = nearer(ea, ord(ka), eb, ord(kb));
             push_entry(self, second, stack, sp, prefetch_leaf);
             return first;
         }
-        let mut push = |key: u64| push_entry(self, entry(key), stack, sp, prefetch_leaf);
+        let mut push = |key: u64| push_entry(self, entry(slot(key)), stack, sp, prefetch_leaf);
         let b = key(kb);
         let c = key(rest.trailing_zeros());
         let rest = rest & (rest - 1);
@@ -681,7 +684,7 @@ impl Bvh8 {
             let (a, b) = sort2(a, b);
             push(c);
             push(b);
-            return entry(a);
+            return entry(slot(a));
         }
         let d = key(rest.trailing_zeros());
         let rest = rest & (rest - 1);
@@ -694,7 +697,7 @@ impl Bvh8 {
             push(d);
             push(c);
             push(b);
-            return entry(a);
+            return entry(slot(a));
         }
         // Five or more (rare): the keys sorted in a small array.
         let mut keys = [u64::MAX; 8];
@@ -710,7 +713,7 @@ impl Bvh8 {
         for &k in keys[1..n].iter().rev() {
             push(k);
         }
-        entry(keys[0])
+        entry(slot(keys[0]))
     }
 
     /// Closest hit, front to back (see [`crate::accel::Accel::intersect`]).
@@ -1390,10 +1393,6 @@ mod tests {
         check_kind_on_all_scenes(AccelKind::Bvh8);
     }
 
-    /// Both node tests (the plain one on integer bits and the general one) visit every
-    /// leaf whose box the ray enters within `[t_min, t_max]`, by an exact slab test in
-    /// f64, for rays of every kind: `t_min` positive, `+0`, `-0` and negative, finite
-    /// ranges, direction components zero, subnormal or huge, origins inside the boxes.
     /// The bit-range form of `needs_general_test` against its definition in float
     /// comparisons, for each field of the ray at every edge of its range.
     #[test]
@@ -1451,6 +1450,10 @@ mod tests {
         assert!(general > 7 * 3 && general < 7 * edges.len() - 7 * 3);
     }
 
+    /// Both node tests (the plain one on integer bits and the general one) visit every
+    /// leaf whose box the ray enters within `[t_min, t_max]`, by an exact slab test in
+    /// f64, for rays of every kind: `t_min` positive, `+0`, `-0` and negative, finite
+    /// ranges, direction components zero, subnormal or huge, origins inside the boxes.
     #[test]
     fn visits_every_box_the_ray_enters() {
         let boxes = crate::accel::bvh::tests::random_boxes(3000, 23);
