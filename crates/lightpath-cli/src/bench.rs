@@ -82,6 +82,16 @@ const SETS: [(&str, bool); 4] = [
     ("diffuse", false),
 ];
 
+/// A table cell for a speed in Mrays/s: two decimals from 1 up, and at least three
+/// significant digits below (the brute-force list's 0.000925 would otherwise read 0.00).
+fn rate_cell(mrays: f64) -> String {
+    if !(mrays > 0.0 && mrays < 1.0) {
+        return format!("{mrays:.2}");
+    }
+    let decimals = (2 - mrays.log10().floor() as i32).clamp(2, 6) as usize;
+    format!("{mrays:.decimals$}")
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -316,7 +326,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
                         Mode::Stream => stream_sets.insert(set.to_string(), entry),
                         Mode::Packet => packet_sets.insert(set.to_string(), entry),
                     };
-                    line[usize::from(threads != 1) + 2 * m] += &format!(" {mrays:>8.2}");
+                    line[usize::from(threads != 1) + 2 * m] += &format!(" {:>8}", rate_cell(mrays));
                 }
             }
             per_set.insert("threads".into(), json!(threads));
@@ -381,4 +391,19 @@ pub fn run(args: BenchArgs) -> Result<()> {
         fsutil::write_atomic(path, text.as_bytes())?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::rate_cell;
+
+    #[test]
+    fn rate_cells_keep_three_significant_digits_below_one() {
+        assert_eq!(rate_cell(16.414), "16.41");
+        assert_eq!(rate_cell(1.0), "1.00");
+        assert_eq!(rate_cell(0.67), "0.670");
+        assert_eq!(rate_cell(0.0215), "0.0215");
+        assert_eq!(rate_cell(0.000_924_557), "0.000925");
+        assert_eq!(rate_cell(0.0), "0.00");
+    }
 }
