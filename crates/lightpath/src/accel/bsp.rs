@@ -14,8 +14,13 @@
 //! [`BINS`] bins and every bin boundary `d` is scored by a SAH-like cost:
 //! `C_trav + C_isect · (A(below) · n_below + A(above) · n_above) / A(node)`, where
 //! `below` holds the primitives whose interval starts at or before `d`, `above` those
-//! that end at or after it (a primitive straddling the plane goes to both sides), and
-//! `A` is the surface area of the union of their boxes. The cheapest plane is taken
+//! that end at or after it (a primitive straddling the plane goes to both sides), `A` of
+//! a side is the surface area of the union of their boxes, and `A(node)` that of a box
+//! around the node's region (the scene box clipped by each ancestor's plane in turn).
+//! Two more candidates per normal cut empty space away: the planes just outside the
+//! primitives' extent on either side, where the region reaches beyond it and the cut
+//! takes at least a tenth off the region's box, cost `C_trav + C_isect · (1 − b) · n ·
+//! A(kept) / A(node)` with `b` = [`EMPTY_BONUS`]. The cheapest plane is taken
 //! unless a leaf is cheaper for the third time on a path (bad refines, as in the
 //! kd-tree); leaves hold at most [`MAX_LEAF`] primitives unless the depth limit
 //! `8 + 1.3 · log2 N` stops the split. Primitive intervals are widened by a relative
@@ -46,6 +51,9 @@ pub const BINS: usize = 32;
 /// Cost of a primitive test relative to [`TRAVERSAL_COST`].
 pub const INTERSECT_COST: f32 = 2.0;
 pub const TRAVERSAL_COST: f32 = 1.0;
+/// Fraction of the cost saved by a plane with nothing on one side (it cuts empty space
+/// away).
+pub const EMPTY_BONUS: f32 = 0.5;
 /// Largest leaf (unless the depth limit stops the split first).
 pub const MAX_LEAF: usize = 2;
 /// `count` of an inner node.
@@ -128,6 +136,40 @@ fn project(b: &Bounds3, n: Vec3) -> (f32, f32) {
     (c - e, c + e)
 }
 
+/// The box around the part of `b` on one side of the plane `n · x = d` (`below`: where
+/// `n · x <= d`): the corners on that side and the edges' crossings of the plane; empty
+/// if none. A conservative stand-in for a node's region (the scene box cut by the planes
+/// above it) in the split cost; traversal never uses it.
+fn clip_box(b: &Bounds3, n: Vec3, d: f32, below: bool) -> Bounds3 {
+    if b.is_empty() {
+        return Bounds3::EMPTY;
+    }
+    let corners = b.corners();
+    let side = corners.map(|c| {
+        let v = n.dot(c) - d;
+        if below {
+            -v
+        } else {
+            v
+        }
+    });
+    let mut out = Bounds3::EMPTY;
+    for k in 0..8 {
+        if side[k] >= 0.0 {
+            out = out.union(&Bounds3::from_point(corners[k]));
+        }
+        for bit in [1, 2, 4] {
+            let j = k | bit;
+            if j != k && (side[k] >= 0.0) != (side[j] >= 0.0) {
+                let t = side[k] / (side[k] - side[j]);
+                let p = corners[k] + (corners[j] - corners[k]) * t;
+                out = out.union(&Bounds3::from_point(p.clamp(b.min, b.max)));
+            }
+        }
+    }
+    out
+}
+
 /// The principal axis of the centres (unit), or `None` if they hardly spread.
 fn principal_axis(centres: impl Iterator<Item = Vec3> + Clone) -> Option<Vec3> {
     let n = centres.clone().count() as f64;
@@ -186,12 +228,19 @@ struct Builder<'a> {
 }
 
 impl Builder<'_> {
-    fn build(&self, prims: Vec<u32>, depth_left: usize, bad_refines: usize) -> BuildNode {
+    /// The subtree of `prims` in `region` (a box around the node's region).
+    fn build(
+        &self,
+        prims: Vec<u32>,
+        region: Bounds3,
+        depth_left: usize,
+        bad_refines: usize,
+    ) -> BuildNode {
         let bounds = prims
             .iter()
             .fold(Bounds3::EMPTY, |a, &p| a.union(&self.boxes[p as usize]));
         let n = prims.len();
-        let area = bounds.surface_area();
+        let area = region.surface_area();
         if n <= MAX_LEAF || depth_left == 0 || area.is_nan() || area <= 0.0 {
             return BuildNode::Leaf { prims, bounds };
         }
@@ -202,7 +251,7 @@ impl Builder<'_> {
             .chain(pca);
         let mut best: Option<(Vec3, f32, f32)> = None;
         for normal in normals {
-            if let Some((offset, cost)) = self.best_plane(&prims, normal, area) {
+            if let Some((offset, cost)) = self.best_plane(&prims, normal, &region, area) {
                 if best.is_none_or(|(_, _, c)| cost < c) {
                     best = Some((normal, offset, cost));
                 }
@@ -232,15 +281,17 @@ impl Builder<'_> {
             return BuildNode::Leaf { prims, bounds };
         }
         drop(prims);
+        let region_below = clip_box(&region, normal, offset, true);
+        let region_above = clip_box(&region, normal, offset, false);
         let (l, r) = if n > PARALLEL_THRESHOLD {
             rayon::join(
-                || self.build(below, depth_left - 1, bad_refines),
-                || self.build(above, depth_left - 1, bad_refines),
+                || self.build(below, region_below, depth_left - 1, bad_refines),
+                || self.build(above, region_above, depth_left - 1, bad_refines),
             )
         } else {
             (
-                self.build(below, depth_left - 1, bad_refines),
-                self.build(above, depth_left - 1, bad_refines),
+                self.build(below, region_below, depth_left - 1, bad_refines),
+                self.build(above, region_above, depth_left - 1, bad_refines),
             )
         };
         BuildNode::Inner {
@@ -251,8 +302,15 @@ impl Builder<'_> {
         }
     }
 
-    /// The cheapest bin boundary along `normal`: (offset, cost).
-    fn best_plane(&self, prims: &[u32], normal: Vec3, area: f32) -> Option<(f32, f32)> {
+    /// The cheapest plane along `normal`, a bin boundary or a plane just outside the
+    /// primitives on either side (cutting empty space away): (offset, cost).
+    fn best_plane(
+        &self,
+        prims: &[u32],
+        normal: Vec3,
+        region: &Bounds3,
+        area: f32,
+    ) -> Option<(f32, f32)> {
         let intervals: Vec<(f32, f32)> = prims
             .iter()
             .map(|&p| project(&self.boxes[p as usize], normal))
@@ -274,6 +332,16 @@ impl Builder<'_> {
             bins[j].ends += 1;
             bins[j].end_box = bins[j].end_box.union(b);
         }
+        // A bin boundary costs what its two sides' primitives' boxes cover, relative to
+        // the node's region; a cut just outside the primitives (below) what is left of
+        // the region, with a bonus for the empty side.
+        let n = prims.len();
+        let mut best: Option<(f32, f32)> = None;
+        let mut consider = |d: f32, c: f32| {
+            if best.is_none_or(|(_, b)| c < b) {
+                best = Some((d, c));
+            }
+        };
         // Above the boundary k: the boxes ending in bins k and up.
         let mut above = [(0usize, 0.0f32); BINS];
         let (mut count, mut acc) = (0, Bounds3::EMPTY);
@@ -282,7 +350,6 @@ impl Builder<'_> {
             acc = acc.union(&bins[k].end_box);
             above[k] = (count, acc.surface_area());
         }
-        let mut best: Option<(f32, f32)> = None;
         let (mut count, mut acc) = (0, Bounds3::EMPTY);
         for k in 1..BINS {
             count += bins[k - 1].starts;
@@ -292,8 +359,25 @@ impl Builder<'_> {
                 + INTERSECT_COST
                     * (acc.surface_area() * count as f32 + above_area * n_above as f32)
                     / area;
-            if best.is_none_or(|(_, c)| cost < c) {
-                best = Some((lo + k as f32 / scale, cost));
+            consider(lo + k as f32 / scale, cost);
+        }
+        // Just outside the primitives (a margin well clear of the widening that sorts
+        // primitives to the sides), where that cuts at least a tenth off the region's
+        // box: a cut that leaves the box as it was (an oblique plane past a corner the
+        // box still holds) would otherwise look as good every time and use up the depth.
+        let margin = spread * 1e-3 + (lo.abs() + hi.abs()) * 1e-5;
+        let (r_lo, r_hi) = project(region, normal);
+        for (d, below) in [(lo - margin, false), (hi + margin, true)] {
+            let outside = if below { r_hi > d } else { r_lo < d };
+            let kept = if outside {
+                clip_box(region, normal, d, below).surface_area()
+            } else {
+                area
+            };
+            if kept < 0.9 * area {
+                let cost =
+                    TRAVERSAL_COST + INTERSECT_COST * (1.0 - EMPTY_BONUS) * kept * n as f32 / area;
+                consider(d, cost);
             }
         }
         best
@@ -341,7 +425,7 @@ impl Bsp {
             .filter(|&i| !boxes[i as usize].is_empty())
             .collect();
         let max_depth = (8.0 + 1.3 * (prims.len().max(1) as f32).log2()).round() as usize;
-        let root = Builder { boxes }.build(prims, max_depth.min(STACK_SIZE - 2), 0);
+        let root = Builder { boxes }.build(prims, bounds, max_depth.min(STACK_SIZE - 2), 0);
         let covers = CoverCuts::record(&root);
         let mut nodes = Vec::new();
         let mut prim_indices = Vec::new();
@@ -446,6 +530,42 @@ mod tests {
     #[test]
     fn matches_the_list_on_every_test_scene() {
         testing::check_kind_on_all_scenes(AccelKind::Bsp);
+    }
+
+    /// Empty space is cut away: a cluster of small triangles in one corner of a big
+    /// scene box gets empty leaves around it, and a ray that passes the cluster by
+    /// crosses few regions (with only planes between primitives, every region held
+    /// primitives and such a ray crossed the cluster's regions one after another).
+    #[test]
+    fn cuts_empty_space_away() {
+        let mut rng = crate::sampling::Pcg32::new(9, 2);
+        let mut tris: Vec<testing::Triangle> = (0..500)
+            .map(|_| {
+                let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+                [
+                    o,
+                    o + Vec3::new(0.05, 0.0, 0.0),
+                    o + Vec3::new(0.0, 0.05, 0.02),
+                ]
+            })
+            .collect();
+        // A far corner makes the scene box 10 wide.
+        let far = Vec3::splat(10.0);
+        tris.push([far, far - Vec3::X * 0.01, far - Vec3::Y * 0.01]);
+        let tree = Bsp::build(&boxes(&tris));
+        assert!(tree.nodes.iter().any(|n| n.count == 0));
+        let accel = crate::accel::Accel::Bsp(tree);
+        // Rays along z through the empty part of the box, beside the cluster.
+        let mut visited = 0;
+        for i in 0..100 {
+            let x = 1.5 + 8.0 * i as f32 / 100.0;
+            let ray = Ray::new(Vec3::new(x, 0.5, -1.0), Vec3::Z);
+            let (hit, _, stats) = testing::closest(&accel, &tris, &ray);
+            assert!(hit.is_none());
+            visited += stats.nodes_visited;
+        }
+        assert!(visited <= 100 * 8, "{visited} nodes for 100 rays");
+        testing::check_against_list(&accel, &tris, &testing::rays_for(&tris, 2000, 4), "cluster");
     }
 
     /// A scene of thin slabs along a diagonal is split by diagonal planes, which no
