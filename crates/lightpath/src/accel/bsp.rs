@@ -368,12 +368,10 @@ impl Builder<'_> {
         let margin = spread * 1e-3 + (lo.abs() + hi.abs()) * 1e-5;
         let (r_lo, r_hi) = project(region, normal);
         for (d, below) in [(lo - margin, false), (hi + margin, true)] {
-            let outside = if below { r_hi > d } else { r_lo < d };
-            let kept = if outside {
-                clip_box(region, normal, d, below).surface_area()
-            } else {
-                area
-            };
+            if (below && r_hi <= d) || (!below && r_lo >= d) {
+                continue; // The region ends before the plane: nothing to cut.
+            }
+            let kept = clip_box(region, normal, d, below).surface_area();
             if kept < 0.9 * area {
                 let cost =
                     TRAVERSAL_COST + INTERSECT_COST * (1.0 - EMPTY_BONUS) * kept * n as f32 / area;
