@@ -119,6 +119,17 @@ pub(crate) struct VertexSamples {
 impl VertexSamples {
     #[inline(always)]
     pub(crate) fn draw(sampler: &mut Sampler) -> Self {
+        if let Sampler::Independent(s) = sampler {
+            // The same seven numbers, drawn side by side.
+            let [u_light, u_prim, px, py, u_lobe, dx, dy] = s.next_1ds();
+            return VertexSamples {
+                u_light,
+                u_prim,
+                u_point: Vec2::new(px, py),
+                u_lobe,
+                u_dir: Vec2::new(dx, dy),
+            };
+        }
         let Vec2 {
             x: u_light,
             y: u_prim,

@@ -74,6 +74,12 @@ impl IndependentSampler {
         self.rng.next_f32()
     }
 
+    /// The next `N` (at most 8) numbers of [`IndependentSampler::next_1d`] at once.
+    #[inline(always)]
+    pub fn next_1ds<const N: usize>(&mut self) -> [f32; N] {
+        self.rng.next_f32s()
+    }
+
     #[inline]
     pub fn next_2d(&mut self) -> Vec2 {
         let x = self.rng.next_f32();

@@ -39,6 +39,31 @@ impl Pcg32 {
     }
 
     /// Skips `delta` steps ahead in O(log delta) (Brown 1994).
+    /// The next `N` numbers of [`Pcg32::next_f32`], in order, with the state moved on
+    /// by `N`: each output's state is one jump from the current state, so the `N`
+    /// products run side by side instead of one after another (the same numbers).
+    #[inline(always)]
+    pub fn next_f32s<const N: usize>(&mut self) -> [f32; N] {
+        const { assert!(N < JUMPS.len(), "at most 8 numbers at once") };
+        let old = self.state;
+        let inc = self.inc;
+        let out = std::array::from_fn(|k| {
+            let map = &JUMPS[k];
+            let s = map
+                .mult
+                .wrapping_mul(old)
+                .wrapping_add(map.plus_per_inc.wrapping_mul(inc));
+            let xorshifted = (((s >> 18) ^ s) >> 27) as u32;
+            (xorshifted.rotate_right((s >> 59) as u32) >> 8) as f32 * (1.0 / 16_777_216.0)
+        });
+        let map = &JUMPS[N];
+        self.state = map
+            .mult
+            .wrapping_mul(old)
+            .wrapping_add(map.plus_per_inc.wrapping_mul(inc));
+        out
+    }
+
     pub fn advance(&mut self, delta: u64) {
         let (acc_mult, acc_plus) = advance_map(delta, self.inc);
         self.state = acc_mult.wrapping_mul(self.state).wrapping_add(acc_plus);
@@ -63,6 +88,20 @@ impl Pcg32 {
 }
 
 /// A precomputed skip ahead: `advance(delta)` as state ↦ mult·state + plus_per_inc·inc.
+/// `JUMPS[k]` moves a state on by `k` steps (for [`Pcg32::next_f32s`]).
+const JUMPS: [JumpMap; 9] = {
+    let mut jumps = [JumpMap {
+        mult: 1,
+        plus_per_inc: 0,
+    }; 9];
+    let mut k = 1;
+    while k < 9 {
+        jumps[k] = Pcg32::jump_map(k as u64);
+        k += 1;
+    }
+    jumps
+};
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct JumpMap {
     mult: u64,
@@ -89,6 +128,26 @@ const fn advance_map(mut delta: u64, inc: u64) -> (u64, u64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `next_f32s` gives the numbers of `N` calls of `next_f32`, and leaves the state
+    /// where they leave it.
+    #[test]
+    fn batched_numbers_equal_one_by_one() {
+        fn check<const N: usize>(seed: u64, stream: u64) {
+            let mut one = Pcg32::new(seed, stream);
+            let mut batch = one;
+            let want: [f32; N] = std::array::from_fn(|_| one.next_f32());
+            assert_eq!(batch.next_f32s::<N>(), want, "N = {N}");
+            assert_eq!(batch.next_u32(), one.next_u32(), "N = {N}");
+        }
+        for (seed, stream) in [(0, 0), (42, 54), (u64::MAX, 7), (0x9e37_79b9, 1 << 62)] {
+            check::<1>(seed, stream);
+            check::<2>(seed, stream);
+            check::<3>(seed, stream);
+            check::<7>(seed, stream);
+            check::<8>(seed, stream);
+        }
+    }
 
     #[test]
     fn matches_reference_sequence() {
