@@ -203,14 +203,14 @@ impl DiffuseLanes {
                     };
                     let k = self.fill(pt, tag, path, diffuse, light, &u, sampler);
                     self.from_hit.0[k] = true;
-                    for (c, (&p, &n)) in triangle
-                        .p
-                        .iter()
-                        .zip(&triangle.normals.unwrap_or([Vec3::ZERO; 3]))
-                        .enumerate()
-                    {
+                    for (c, &p) in triangle.p.iter().enumerate() {
                         set3(&mut self.hit_corners[c], k, p);
-                        set3(&mut self.hit_normals[c], k, n);
+                    }
+                    // (Flat lanes do not read their normals.)
+                    if let Some(normals) = triangle.normals {
+                        for (c, &n) in normals.iter().enumerate() {
+                            set3(&mut self.hit_normals[c], k, n);
+                        }
                     }
                     self.smooth.0[k] = triangle.normals.is_some();
                     self.flipped.0[k] = triangle.flipped;

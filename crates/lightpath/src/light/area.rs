@@ -69,6 +69,9 @@ struct FlatMeshEmitter {
     /// Triangles in proportion to their object-space area (the mesh's own distribution).
     distribution: Distribution1D,
     triangles: Vec<EmitterTriangle>,
+    /// The radiance where it is constant and the transform affine: the lights whose
+    /// samples run many at once ([`AreaLight::flat_constant_sample`]).
+    constant_radiance: Option<Vec3>,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -124,6 +127,7 @@ impl FlatMeshEmitter {
         Some(FlatMeshEmitter {
             distribution,
             triangles,
+            constant_radiance: None,
         })
     }
 }
@@ -247,6 +251,13 @@ impl AreaLight {
             // so does radiance that reads vertex colours (from each point's interaction).
             if m.alpha().is_none() && !light.emission.radiance.uses_vertex_colors() {
                 light.flat_mesh = FlatMeshEmitter::new(m, &render_from_object, &light);
+                if let (Some(mesh), Texture::Constant(radiance)) =
+                    (&mut light.flat_mesh, &*light.emission.radiance)
+                {
+                    if render_from_object.is_affine() {
+                        mesh.constant_radiance = Some(*radiance);
+                    }
+                }
             }
         }
         light
@@ -335,12 +346,7 @@ impl AreaLight {
     #[inline(always)]
     pub(crate) fn flat_constant_sample(&self, u: Vec2) -> Option<FlatTriangleSample<'_>> {
         let mesh = self.flat_mesh.as_ref()?;
-        let Texture::Constant(radiance) = &*self.emission.radiance else {
-            return None;
-        };
-        if !self.render_from_object.is_affine() {
-            return None;
-        }
+        let radiance = mesh.constant_radiance.as_ref()?;
         let (prim, c0, c1) = mesh.distribution.cell_interval(u.x);
         let tri = &mesh.triangles[prim];
         Some(FlatTriangleSample {
