@@ -635,8 +635,19 @@ impl Renderer<'_> {
         let mut rays: Vec<Ray> = Vec::with_capacity(w);
         let mut hits: Vec<Option<BatchHit>> = vec![None; w];
         let mut ended = vec![false; w];
-        let mut shadows: Vec<(usize, ShadowQuery)> = Vec::with_capacity(w);
-        let mut shadow_rays: Vec<Ray> = Vec::with_capacity(w);
+        // A round's shadow rays, at most one per path (see `ns` below).
+        let mut shadows: Vec<(usize, ShadowQuery)> = vec![
+            (
+                0,
+                ShadowQuery {
+                    ray: Ray::new(Vec3::ZERO, Vec3::Z),
+                    contribution: Default::default(),
+                },
+            );
+            w
+        ];
+        let mut shadow_rays: Vec<Ray> = vec![Ray::new(Vec3::ZERO, Vec3::Z); w];
+        let mut ended_at = vec![0u32; w];
         let mut occluded = vec![false; w];
         let mut lanes = DiffuseLanes::new();
         // Every slot starts as a restart. (The restarts are written out here rather than
@@ -687,21 +698,25 @@ impl Renderer<'_> {
             rays.extend(live.iter().map(|(_, _, path, _)| path.ray));
             self.scene
                 .intersect_batch(&rays, &mut hits[..m], &mut ray_stats);
-            shadows.clear();
-            shadow_rays.clear();
+            // The round's shadow rays: the first `ns` of `shadows` and `shadow_rays`.
+            // The lanes' results are taken without branching on whether a path goes on
+            // or has a shadow ray (each written in place and counted or not): random
+            // outcomes that mispredicted as branches.
+            let mut ns = 0;
             // Each path's vertex: `PathTracer::step` in parts, with the vertices that
             // can gathered into lanes that scatter sixteen at a time.
             let lane_done = |r: LaneResult,
                              live: &mut [(usize, usize, PathState, Vec3)],
                              ended: &mut [bool],
-                             shadows: &mut Vec<(usize, ShadowQuery)>,
-                             shadow_rays: &mut Vec<Ray>| {
+                             shadows: &mut [(usize, ShadowQuery)],
+                             shadow_rays: &mut [Ray],
+                             ns: &mut usize| {
                 let i = r.tag as usize;
                 ended[i] = !r.apply(&mut live[i].2);
-                if let Some(q) = r.shadow {
-                    shadow_rays.push(q.ray);
-                    shadows.push((i, q));
-                }
+                let (has, q) = r.shadow_query();
+                shadow_rays[*ns] = q.ray;
+                shadows[*ns] = (i, *q);
+                *ns += has as usize;
             };
             for i in 0..m {
                 let (slot, _, path, _) = &mut live[i];
@@ -714,43 +729,64 @@ impl Renderer<'_> {
                         if lanes.is_full() {
                             run_lanes(&mut lanes, self.scene);
                             lanes.finish(|r| {
-                                lane_done(r, &mut live, &mut ended, &mut shadows, &mut shadow_rays)
+                                lane_done(
+                                    r,
+                                    &mut live,
+                                    &mut ended,
+                                    &mut shadows,
+                                    &mut shadow_rays,
+                                    &mut ns,
+                                )
                             });
                         }
                         continue;
                     }
                 }
                 if let Some(q) = shadow {
-                    shadow_rays.push(q.ray);
-                    shadows.push((i, q));
+                    shadow_rays[ns] = q.ray;
+                    shadows[ns] = (i, q);
+                    ns += 1;
                 }
             }
             if lanes.len() > 0 {
                 run_lanes(&mut lanes, self.scene);
                 lanes.finish(|r| {
-                    lane_done(r, &mut live, &mut ended, &mut shadows, &mut shadow_rays)
+                    lane_done(
+                        r,
+                        &mut live,
+                        &mut ended,
+                        &mut shadows,
+                        &mut shadow_rays,
+                        &mut ns,
+                    )
                 });
             }
-            let s = shadow_rays.len();
             self.scene
-                .occluded_batch(&shadow_rays, &mut occluded[..s], &mut ray_stats);
-            for ((i, q), &blocked) in shadows.iter().zip(&occluded[..s]) {
+                .occluded_batch(&shadow_rays[..ns], &mut occluded[..ns], &mut ray_stats);
+            for ((i, q), &blocked) in shadows[..ns].iter().zip(&occluded[..ns]) {
                 if !blocked {
                     q.add_to(&mut live[*i].2);
                 }
             }
-            // Retire the paths that ended (the others keep their order: neighbours in the
-            // list are neighbouring pixels), then start their pixels' next samples.
-            let mut i = 0;
-            live.retain(|(slot, k, path, weight)| {
-                let keep = !ended[i];
-                i += 1;
-                if !keep {
-                    add_sample(&mut pixels[*k], pt.finish(path) * *weight, &mut stats);
-                    restart.push(*slot);
-                }
-                keep
-            });
+            // Retire the paths that ended, in order: their samples, then their pixels'
+            // next samples. The others keep their order (neighbours in the list are
+            // neighbouring pixels), moved down without branching on which ended.
+            let mut e = 0;
+            for (i, &end) in ended[..m].iter().enumerate() {
+                ended_at[e] = i as u32;
+                e += end as usize;
+            }
+            for &i in &ended_at[..e] {
+                let (slot, k, path, weight) = &live[i as usize];
+                add_sample(&mut pixels[*k], pt.finish(path) * *weight, &mut stats);
+                restart.push(*slot);
+            }
+            let mut kept = 0;
+            for i in 0..m {
+                live[kept] = live[i];
+                kept += !ended[i] as usize;
+            }
+            live.truncate(kept);
             stats.add_rays(&ray_stats);
         }
         stats.samples += n as u64 * job.count as u64;

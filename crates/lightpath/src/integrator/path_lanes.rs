@@ -117,14 +117,19 @@ pub(crate) struct DiffuseLanes {
     pdf: F,
 }
 
-/// What [`DiffuseLanes::finish`] hands back for one vertex.
+/// What [`DiffuseLanes::finish`] hands back for one vertex. Both the next ray and the
+/// shadow ray are filled in whether or not they exist, so that callers can take them
+/// without branching on data that no predictor guesses (whether a path goes on, whether
+/// its vertex has a shadow ray).
 pub(crate) struct LaneResult {
     /// The tag it was pushed with.
     pub tag: u32,
-    /// The path's next ray, where it goes on.
-    next: Option<Next>,
-    /// The vertex's shadow ray, as [`PathTracer::step`] gives it.
-    pub shadow: Option<ShadowQuery>,
+    /// Whether the path goes on, with `next`.
+    more: bool,
+    next: Next,
+    /// Whether the vertex has a shadow ray, `query`, as [`PathTracer::step`] gives it.
+    has_shadow: bool,
+    query: ShadowQuery,
 }
 
 struct Next {
@@ -134,17 +139,29 @@ struct Next {
 }
 
 impl LaneResult {
-    /// Moves the vertex's path on as `scatter` would; returns whether it goes on.
+    /// Moves the vertex's path on as `scatter` would; returns whether it goes on. A path
+    /// that ends is written too (its ray, throughput, depth and previous vertex become
+    /// meaningless): all that is read of it afterwards is its radiance, which this leaves
+    /// alone ([`PathTracer::finish`]).
     #[inline(always)]
     pub(crate) fn apply(&self, path: &mut PathState) -> bool {
-        let Some(next) = &self.next else {
-            return false;
-        };
-        path.prev = Some(next.prev);
-        path.ray = next.ray;
+        path.prev = Some(self.next.prev);
+        path.ray = self.next.ray;
         path.depth += 1;
-        path.beta = next.beta;
-        true
+        path.beta = self.next.beta;
+        self.more
+    }
+
+    /// The vertex's shadow ray, as [`PathTracer::step`] gives it.
+    #[cfg(test)]
+    pub(crate) fn shadow(&self) -> Option<ShadowQuery> {
+        self.has_shadow.then_some(self.query)
+    }
+
+    /// Whether the vertex has a shadow ray, and the ray (meaningless where it has none).
+    #[inline(always)]
+    pub(crate) fn shadow_query(&self) -> (bool, &ShadowQuery) {
+        (self.has_shadow, &self.query)
     }
 }
 
@@ -556,7 +573,7 @@ impl DiffuseLanes {
     pub(crate) fn finish(&mut self, mut done: impl FnMut(LaneResult)) {
         for k in 0..self.len {
             let get = |a: &F3| Vec3::new(a[0][k], a[1][k], a[2][k]);
-            let shadow = self.shadow.0[k].then(|| ShadowQuery {
+            let query = ShadowQuery {
                 ray: Ray::with_range(
                     get(&self.shadow_origin),
                     get(&self.shadow_direction),
@@ -564,8 +581,8 @@ impl DiffuseLanes {
                     1.0 - crate::geometry::SHADOW_EPSILON,
                 ),
                 contribution: Vec3A::from(get(&self.contribution)),
-            });
-            let next = self.more.0[k].then(|| Next {
+            };
+            let next = Next {
                 prev: Previous {
                     p: get(&self.p),
                     bsdf_pdf: self.pdf[k],
@@ -573,11 +590,13 @@ impl DiffuseLanes {
                 },
                 ray: Ray::new(get(&self.ray_origin), get(&self.ray_direction)),
                 beta: Vec3A::from(get(&self.beta_out)),
-            });
+            };
             done(LaneResult {
                 tag: self.tag[k],
+                more: self.more.0[k],
                 next,
-                shadow,
+                has_shadow: self.shadow.0[k],
+                query,
             });
         }
         self.len = 0;
@@ -843,7 +862,7 @@ mod tests {
         lanes.finish(|r| {
             let (want, want_shadow, want_more, path, _) = &mut pending[r.tag as usize];
             let more = r.apply(path);
-            assert_same(path, more, &r.shadow, want, *want_more, want_shadow);
+            assert_same(path, more, &r.shadow(), want, *want_more, want_shadow);
         });
         pending.clear();
     }
