@@ -127,7 +127,10 @@ impl FlatMeshEmitter {
         Some(FlatMeshEmitter {
             distribution,
             triangles,
-            constant_radiance: None,
+            constant_radiance: match &*light.emission.radiance {
+                Texture::Constant(radiance) if render_from_object.is_affine() => Some(*radiance),
+                _ => None,
+            },
         })
     }
 }
@@ -251,13 +254,6 @@ impl AreaLight {
             // so does radiance that reads vertex colours (from each point's interaction).
             if m.alpha().is_none() && !light.emission.radiance.uses_vertex_colors() {
                 light.flat_mesh = FlatMeshEmitter::new(m, &render_from_object, &light);
-                if let (Some(mesh), Texture::Constant(radiance)) =
-                    (&mut light.flat_mesh, &*light.emission.radiance)
-                {
-                    if render_from_object.is_affine() {
-                        mesh.constant_radiance = Some(*radiance);
-                    }
-                }
             }
         }
         light

@@ -27,15 +27,13 @@ impl Pcg32 {
     pub fn next_u32(&mut self) -> u32 {
         let old = self.state;
         self.state = old.wrapping_mul(MULTIPLIER).wrapping_add(self.inc);
-        let xorshifted = (((old >> 18) ^ old) >> 27) as u32;
-        let rot = (old >> 59) as u32;
-        xorshifted.rotate_right(rot)
+        output(old)
     }
 
     /// A float uniformly in [0, 1): 24 random mantissa bits, never 1.
     #[inline]
     pub fn next_f32(&mut self) -> f32 {
-        (self.next_u32() >> 8) as f32 * (1.0 / 16_777_216.0)
+        unit_f32(self.next_u32())
     }
 
     /// Skips `delta` steps ahead in O(log delta) (Brown 1994).
@@ -45,22 +43,9 @@ impl Pcg32 {
     #[inline(always)]
     pub fn next_f32s<const N: usize>(&mut self) -> [f32; N] {
         const { assert!(N < JUMPS.len(), "at most 8 numbers at once") };
-        let old = self.state;
-        let inc = self.inc;
-        let out = std::array::from_fn(|k| {
-            let map = &JUMPS[k];
-            let s = map
-                .mult
-                .wrapping_mul(old)
-                .wrapping_add(map.plus_per_inc.wrapping_mul(inc));
-            let xorshifted = (((s >> 18) ^ s) >> 27) as u32;
-            (xorshifted.rotate_right((s >> 59) as u32) >> 8) as f32 * (1.0 / 16_777_216.0)
-        });
-        let map = &JUMPS[N];
-        self.state = map
-            .mult
-            .wrapping_mul(old)
-            .wrapping_add(map.plus_per_inc.wrapping_mul(inc));
+        let (old, inc) = (self.state, self.inc);
+        let out = std::array::from_fn(|k| unit_f32(output(JUMPS[k].apply(old, inc))));
+        self.state = JUMPS[N].apply(old, inc);
         out
     }
 
@@ -73,10 +58,7 @@ impl Pcg32 {
     /// `advance(delta)`.
     #[inline]
     pub fn jump(&mut self, map: JumpMap) {
-        self.state = map
-            .mult
-            .wrapping_mul(self.state)
-            .wrapping_add(map.plus_per_inc.wrapping_mul(self.inc));
+        self.state = map.apply(self.state, self.inc);
     }
 
     /// What `advance(delta)` does to the state of any stream, for [`Pcg32::jump`].
@@ -87,7 +69,19 @@ impl Pcg32 {
     }
 }
 
-/// A precomputed skip ahead: `advance(delta)` as state ↦ mult·state + plus_per_inc·inc.
+/// The PCG output permutation (XSH RR) of a state.
+#[inline(always)]
+fn output(state: u64) -> u32 {
+    let xorshifted = (((state >> 18) ^ state) >> 27) as u32;
+    xorshifted.rotate_right((state >> 59) as u32)
+}
+
+/// The float in [0, 1) of an output: its top 24 bits.
+#[inline(always)]
+fn unit_f32(x: u32) -> f32 {
+    (x >> 8) as f32 * (1.0 / 16_777_216.0)
+}
+
 /// `JUMPS[k]` moves a state on by `k` steps (for [`Pcg32::next_f32s`]).
 const JUMPS: [JumpMap; 9] = {
     let mut jumps = [JumpMap {
@@ -102,10 +96,21 @@ const JUMPS: [JumpMap; 9] = {
     jumps
 };
 
+/// A precomputed skip ahead: `advance(delta)` as state ↦ mult·state + plus_per_inc·inc.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct JumpMap {
     mult: u64,
     plus_per_inc: u64,
+}
+
+impl JumpMap {
+    /// The state it moves `state` to in the stream of increment `inc`.
+    #[inline(always)]
+    fn apply(&self, state: u64, inc: u64) -> u64 {
+        self.mult
+            .wrapping_mul(state)
+            .wrapping_add(self.plus_per_inc.wrapping_mul(inc))
+    }
 }
 
 /// The affine map state ↦ mult·state + plus of `delta` steps of the stream with
