@@ -38,7 +38,7 @@ struct Cli {
 enum Command {
     /// Render a scene to an image (with no SCENE, a built-in default scene).
     Render(render::RenderArgs),
-    /// Render lightwave <test> scenes and compare them with their reference images.
+    /// Render lightwave test scenes and compare them with their reference images.
     Test(test::TestArgs),
     /// Print error metrics between two images.
     Compare(compare::CompareArgs),

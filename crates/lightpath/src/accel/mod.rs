@@ -145,8 +145,9 @@ pub(crate) fn in_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
 }
 
 impl Accel {
-    /// Builds an accelerator of `kind` over the primitive boxes (on rayon's pool, see
-    /// [`in_pool`]).
+    /// Builds an accelerator of `kind` over the primitive boxes, on rayon's pool: even
+    /// a serial build is started from inside the pool, where the parallel builders'
+    /// tasks are handed out without waking threads from outside it.
     pub fn build(kind: AccelKind, bounds: &[Bounds3]) -> Accel {
         in_pool(|| match kind {
             AccelKind::List => Accel::List(ListAccel::new(bounds)),
