@@ -416,6 +416,8 @@ pub fn render_loaded(
         },
         time_budget: time,
         pass_interval,
+        // Passes only serve previews, tev and time budgets.
+        single_pass: time.is_none() && pass_interval.is_none(),
         progress: Some(&report),
     };
     let result = renderer.render_progressive(&control, &mut |pass| {

@@ -118,6 +118,12 @@ pub struct RenderControl<'a> {
     /// Size passes to take about this long (for previews), instead of letting them
     /// double without bound.
     pub pass_interval: Option<Duration>,
+    /// Take all `max_spp` samples in one pass (`on_pass` is called once), for callers
+    /// that show no image before the last: each pass ends every tile's batch of paths
+    /// in flight, with packets emptying as the last paths finish, and waits for the
+    /// slowest thread. The same image as passes give; ignored with a time budget (whose
+    /// passes are sized from the speed measured in the ones before).
+    pub single_pass: bool,
     /// Called from the worker threads as tiles finish.
     pub progress: Option<&'a (dyn Fn(&Progress) + Sync)>,
 }
@@ -266,7 +272,10 @@ impl Renderer<'_> {
     /// image so far; `on_pass` returning `ControlFlow::Break` ends the render with that
     /// image. The sampler's own count only shapes its sequences (e.g. the Sobol
     /// sampler's shuffle); `max_spp` equal to it gives the image of [`Renderer::render`],
-    /// bit for bit.
+    /// bit for bit, except where rays are traced in packets (AVX-512, one merged mesh): a
+    /// ray that meets two triangles at exactly the same distance (on their shared edge)
+    /// may be given either, depending on the rays that share its packet, which passes
+    /// change.
     pub fn render_progressive(
         &self,
         control: &RenderControl,
@@ -284,7 +293,7 @@ impl Renderer<'_> {
             max_spp,
             budget: control.time_budget,
             interval: control.pass_interval,
-            single: false,
+            single: control.single_pass && control.time_budget.is_none(),
         };
         self.run(schedule, control.progress, on_pass)
     }
@@ -1407,20 +1416,27 @@ mod tests {
     }
 
     /// N samples per pixel in several passes give the single-pass image bit for bit,
-    /// for both samplers, whether the passes double or are cut short by an interval.
+    /// for both samplers, whether the passes double or are cut short by an interval;
+    /// asked for one pass, a progressive render takes one.
     #[test]
     fn progressive_passes_equal_one_pass() {
         for sampler in ["independent", "sobol", "halton"] {
             let l = scene(sampler, 13);
             let r = renderer(&l);
             let (single, single_stats) = r.render(&|_| {}).unwrap();
-            for interval in [None, Some(Duration::ZERO)] {
+            for (interval, single_pass) in [
+                (None, false),
+                (Some(Duration::ZERO), false),
+                (None, true),
+                (Some(Duration::ZERO), true),
+            ] {
                 let mut spps = Vec::new();
                 let out = r
                     .render_progressive(
                         &RenderControl {
                             max_spp: Some(13),
                             pass_interval: interval,
+                            single_pass,
                             ..Default::default()
                         },
                         &mut |p| {
@@ -1430,9 +1446,10 @@ mod tests {
                     )
                     .unwrap();
                 assert_eq!(out.spp, 13);
-                match interval {
-                    None => assert_eq!(spps, vec![1, 2, 4, 8, 13], "{sampler}"),
-                    Some(_) => assert_eq!(spps, (1..=13).collect::<Vec<_>>(), "{sampler}"),
+                match (interval, single_pass) {
+                    (_, true) => assert_eq!(spps, vec![13], "{sampler}"),
+                    (None, _) => assert_eq!(spps, vec![1, 2, 4, 8, 13], "{sampler}"),
+                    (Some(_), _) => assert_eq!(spps, (1..=13).collect::<Vec<_>>(), "{sampler}"),
                 }
                 assert_eq!(out.passes as usize, spps.len());
                 assert_eq!(bits(&out.image), bits(&single), "{sampler} {interval:?}");
@@ -1497,31 +1514,38 @@ mod tests {
         let l = scene("independent", 1);
         let r = renderer(&l);
         let budget = Duration::from_millis(300);
-        let fractions = std::sync::Mutex::new(Vec::new());
-        let report = |p: &Progress| fractions.lock().unwrap().push(p.fraction);
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(2)
             .build()
             .unwrap();
-        let start = Instant::now();
-        let out = pool
-            .install(|| {
-                r.render_progressive(
-                    &RenderControl {
-                        time_budget: Some(budget),
-                        progress: Some(&report),
-                        ..Default::default()
-                    },
-                    &mut |_| ControlFlow::Continue(()),
-                )
-            })
-            .unwrap();
-        let took = start.elapsed();
-        assert!(took < budget + Duration::from_millis(250), "{took:?}");
-        assert!(out.spp > 1, "{}", out.spp);
-        assert_eq!(out.stats.samples, out.spp as u64 * 37 * 21);
-        let fractions = fractions.into_inner().unwrap();
-        assert!(fractions.iter().all(|f| (0.0..=1.0).contains(f)));
+        // A time budget ignores a request for one pass (whose million samples per pixel
+        // would far overrun the budget).
+        for (max_spp, single_pass) in [(None, false), (Some(1 << 20), true)] {
+            let fractions = std::sync::Mutex::new(Vec::new());
+            let report = |p: &Progress| fractions.lock().unwrap().push(p.fraction);
+            let start = Instant::now();
+            let out = pool
+                .install(|| {
+                    r.render_progressive(
+                        &RenderControl {
+                            max_spp,
+                            time_budget: Some(budget),
+                            single_pass,
+                            progress: Some(&report),
+                            ..Default::default()
+                        },
+                        &mut |_| ControlFlow::Continue(()),
+                    )
+                })
+                .unwrap();
+            let took = start.elapsed();
+            assert!(took < budget + Duration::from_millis(250), "{took:?}");
+            assert!(out.spp > 1, "{}", out.spp);
+            assert!(out.passes > 1, "{}", out.passes);
+            assert_eq!(out.stats.samples, out.spp as u64 * 37 * 21);
+            let fractions = fractions.into_inner().unwrap();
+            assert!(fractions.iter().all(|f| (0.0..=1.0).contains(f)));
+        }
     }
 
     #[test]
