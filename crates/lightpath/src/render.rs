@@ -121,7 +121,8 @@ pub struct RenderControl<'a> {
     /// Take all `max_spp` samples in one pass (`on_pass` is called once), for callers
     /// that show no image before the last: each pass ends every tile's batch of paths
     /// in flight, with packets emptying as the last paths finish, and waits for the
-    /// slowest thread. The same image as passes give; ignored with a time budget (whose
+    /// slowest thread. The image is the one passes give (but for the ties that
+    /// [`Renderer::render_progressive`] describes); ignored with a time budget (whose
     /// passes are sized from the speed measured in the ones before).
     pub single_pass: bool,
     /// Called from the worker threads as tiles finish.
