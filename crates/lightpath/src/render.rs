@@ -733,43 +733,31 @@ impl Renderer<'_> {
                 let sampler = &mut samplers[*slot];
                 let mut shadow = None;
                 let hit = hits[i].take();
-                match lanes.step(pt, self.scene, i as u32, path, hit, sampler, &mut shadow) {
-                    Some(more) => ended[i] = !more,
-                    None => {
-                        if lanes.is_full() {
-                            run_lanes(&mut lanes, self.scene);
-                            lanes.finish(|r| {
-                                lane_done(
-                                    r,
-                                    &mut live,
-                                    &mut ended,
-                                    &mut shadows,
-                                    &mut shadow_rays,
-                                    &mut ns,
-                                )
-                            });
-                        }
-                        continue;
+                // `None`: the lanes took the vertex.
+                if let Some(more) =
+                    lanes.step(pt, self.scene, i as u32, path, hit, sampler, &mut shadow)
+                {
+                    ended[i] = !more;
+                    if let Some(q) = shadow {
+                        shadow_rays[ns] = q.ray;
+                        shadows[ns] = (i, q);
+                        ns += 1;
                     }
                 }
-                if let Some(q) = shadow {
-                    shadow_rays[ns] = q.ray;
-                    shadows[ns] = (i, q);
-                    ns += 1;
+                // The lanes run when full, and after the round's last vertex.
+                if lanes.is_full() || (i + 1 == m && lanes.len() > 0) {
+                    run_lanes(&mut lanes, self.scene);
+                    lanes.finish(|r| {
+                        lane_done(
+                            r,
+                            &mut live,
+                            &mut ended,
+                            &mut shadows,
+                            &mut shadow_rays,
+                            &mut ns,
+                        )
+                    });
                 }
-            }
-            if lanes.len() > 0 {
-                run_lanes(&mut lanes, self.scene);
-                lanes.finish(|r| {
-                    lane_done(
-                        r,
-                        &mut live,
-                        &mut ended,
-                        &mut shadows,
-                        &mut shadow_rays,
-                        &mut ns,
-                    )
-                });
             }
             self.scene
                 .occluded_batch(&shadow_rays[..ns], &mut occluded[..ns], &mut ray_stats);
