@@ -87,6 +87,9 @@ pub struct TriangleMesh {
     /// The triangles in the order of the accelerator's leaves, four to a SIMD block,
     /// when the accelerator hands out whole leaves (the wide BVHs); empty otherwise.
     blocks: Vec<TriangleBlock>,
+    /// The box of the blocks' corners, exactly (for [`RayPacket::new`]'s bound on the
+    /// triangle tests' `delta_t`).
+    block_bounds: Bounds3,
     /// Whether the processor has the AVX2 tier (`crate::cpu`): the queries are then
     /// compiled for it.
     avx2: bool,
@@ -318,20 +321,33 @@ pub fn intersect_triangle_watertight(
     let inv_det = 1.0 / det;
     let t = t_scaled * inv_det;
     // Reject t that is not provably positive (pbrt-v4, section 6.8.4).
-    let max_zt = az.abs().max(bz.abs()).max(cz.abs());
-    let delta_z = gamma(3) * max_zt;
-    let max_xt = ax.abs().max(bx.abs()).max(cx.abs());
-    let max_yt = ay.abs().max(by.abs()).max(cy.abs());
-    let delta_x = gamma(5) * (max_xt + max_zt);
-    let delta_y = gamma(5) * (max_yt + max_zt);
-    let delta_e = 2.0 * (gamma(2) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
-    let max_e = e0.abs().max(e1.abs()).max(e2.abs());
-    let delta_t =
-        3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
-    if t <= delta_t {
+    if t <= delta_t(
+        [ax, bx, cx],
+        [ay, by, cy],
+        [az, bz, cz],
+        [e0, e1, e2],
+        inv_det,
+    ) {
         return None;
     }
     Some((t, e0 * inv_det, e1 * inv_det, e2 * inv_det))
+}
+
+/// The error bound on the watertight test's `t` (pbrt-v4, section 6.8.4) from the
+/// translated, permuted and sheared corners (`z` scaled), the edge functions and the
+/// reciprocal determinant: a hit at `t <= delta_t` is not provably in front.
+#[inline(always)]
+pub(crate) fn delta_t(x: [f32; 3], y: [f32; 3], z: [f32; 3], e: [f32; 3], inv_det: f32) -> f32 {
+    let max3 = |v: [f32; 3]| v[0].abs().max(v[1].abs()).max(v[2].abs());
+    let max_zt = max3(z);
+    let delta_z = gamma(3) * max_zt;
+    let max_xt = max3(x);
+    let max_yt = max3(y);
+    let delta_x = gamma(5) * (max_xt + max_zt);
+    let delta_y = gamma(5) * (max_yt + max_zt);
+    let delta_e = 2.0 * (gamma(2) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
+    let max_e = max3(e);
+    3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs()
 }
 
 /// Takes the nearest of the lanes hit by the block(s) starting at block `b` as the closest
@@ -543,6 +559,18 @@ impl TriangleMesh {
             Some(order) => pack_blocks(&data.positions, &data.indices, order),
             None => Vec::new(),
         };
+        let block_bounds = blocks
+            .par_iter()
+            .fold(Bounds3::default, |mut b, block| {
+                for lane in 0..BLOCK {
+                    let (p0, p1, p2) = block.triangle(lane);
+                    for p in [p0, p1, p2] {
+                        b.expand(p);
+                    }
+                }
+                b
+            })
+            .reduce(Bounds3::default, |a, b| a.union(&b));
         // Normals that are not finite or zero make the mesh flat rather than NaN.
         let normals_ok = data
             .normals
@@ -557,6 +585,7 @@ impl TriangleMesh {
             smooth,
             accel,
             blocks,
+            block_bounds,
             avx2: crate::cpu::has_avx2(),
             pair_blocks: crate::cpu::leaf_blocks_per_test() == 2,
             #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
@@ -1102,7 +1131,7 @@ impl TriangleMesh {
         found: &mut PacketHits,
     ) -> u16 {
         // SAFETY: the caller guarantees AVX-512F and DQ.
-        let (packet, t_max) = unsafe { RayPacket::new(rays) };
+        let (packet, t_max) = unsafe { RayPacket::new(rays, &self.block_bounds) };
         *t = t_max;
         stats.rays += rays.len() as u32;
         let mut single_stats = RayStats::default();
@@ -1682,6 +1711,14 @@ mod tests {
                         d = Vec3::Z;
                     }
                     2 => d = Vec3::new(d.x, 0.0, d.z),
+                    // From a point on a triangle (hits there, at t near 0, are not
+                    // provably in front: the tests' `delta_t`).
+                    3 => {
+                        let [a, b, c] = data.indices[i % data.indices.len()]
+                            .map(|k| data.positions[k as usize]);
+                        let (r1, r2) = (rng.next_f32() * 0.5, rng.next_f32() * 0.5);
+                        o = a + (b - a) * r1 + (c - a) * r2;
+                    }
                     _ => {}
                 }
                 let (t_min, t_max) = match i % 5 {

@@ -9,6 +9,12 @@
 //! The permutation is one `vpermps` per vertex coordinate: a block's vertex `v` is
 //! loaded as its twelve coordinates `x0..x3 y0..y3 z0..z3`, and lane `i` picks the
 //! coordinate `4·k_i + j` of triangle `j` for its axis `k_i`.
+//!
+//! The last step of the scalar test, rejecting a hit not provably in front of the
+//! origin (its `delta_t`, fifteen maxima and products), runs only for the lanes whose
+//! hit is not beyond a bound made once per packet from the mesh's box
+//! ([`RayPacket::t_bound`]): the same answers, and on the Cornell box about 3% more
+//! samples a second on one thread.
 
 // The AVX-512 intrinsics are newer than the MSRV; the build script compiles this module
 // only with compilers that have them.
@@ -18,9 +24,14 @@ use super::mesh::{intersect_triangle_watertight, WatertightRay};
 use super::triangle_block::{TriangleBlock, BLOCK};
 use crate::accel::gather_ray_field;
 use crate::accel::PacketLanes;
-use crate::math::{gamma, Ray};
+use crate::math::{gamma, Bounds3, Ray};
 
 pub use crate::accel::PACKET;
+
+/// The relative margin of [`RayPacket::t_bound`], `1 + 2⁻¹²`.
+const DELTA_T_MARGIN: f32 = 1.0 + 1.0 / 4096.0;
+/// The absolute margin of [`RayPacket::t_bound`]'s `k2`, `2⁻¹⁰⁰`.
+const DELTA_T_UNDERFLOW: f32 = 7.888_609e-31;
 
 /// Per-lane constants of sixteen rays: the watertight permutation and shear, and the
 /// box-test lanes the BVH traversal reads.
@@ -32,6 +43,33 @@ pub struct RayPacket<'a> {
     /// The origin permuted by the lane's axes.
     pub(crate) origin_permuted: [[f32; PACKET]; 3],
     pub(crate) shear: [[f32; PACKET]; 3],
+    /// Each lane's constants `(k1, k2)` such that `k1 + k2 · |1/det|` is at least the
+    /// `delta_t` that [`intersect_triangle_watertight`] computes for every triangle with
+    /// its corners in the box given to [`RayPacket::new`] that the ray passes strictly
+    /// inside (all three edge functions of one sign, none zero), where `1/det` is that
+    /// test's reciprocal determinant.
+    ///
+    /// A hit farther than the bound is farther than `delta_t` too, so a test that finds
+    /// `t > k1 + k2 · |1/det|` may skip `delta_t`'s fifteen maxima and products and give
+    /// the same answer; only where it does not (a hit within the bound, or infinities and
+    /// NaNs, which compare false) does it need `delta_t` itself. The bound holds because,
+    /// with `R` the largest distance along any axis from the origin to the box:
+    /// - every translated, permuted and sheared corner coordinate has `|x|, |y| ≤ 2R` and
+    ///   `|z| ≤ R·|sz|`, up to rounding (the shear's `|dx/dz|`, `|dy/dz|` are at most 1,
+    ///   as `z` is the largest direction component);
+    /// - with all three edge functions of one sign, the largest `|e|` is at most their
+    ///   sum `|det|` (up to two roundings), so `max_e · |1/det| ≤ 1 + 4ε`;
+    /// - so `delta_t = 3 (γ3 max_e max_zt + δe max_zt + δz max_e) |1/det|` is at most
+    ///   `6 γ3 Zb (1 + 4ε) + 6 Zb (γ2 Xb² + 2 γ5 (Xb + Zb) Xb) |1/det|` for `Xb = 2R`,
+    ///   `Zb = R |sz|`.
+    ///
+    /// The factor `1 + 2⁻¹²` covers every rounding of both computations (a few dozen of
+    /// `1 + 2⁻²⁴`), `f32::MIN_POSITIVE` in `k1` the absolute error of results that
+    /// underflow, and `2⁻¹⁰⁰` in `k2` that of underflowing terms before the final product
+    /// with `|1/det|`. A box large against a triangle's size (fine meshes, or seen from
+    /// afar) gives a loose bound that hits often do not pass; they then take `delta_t` as
+    /// before. The tests check the bound against `delta_t` on its worst case.
+    pub(crate) t_bound: [[f32; PACKET]; 2],
     pub boxes: PacketLanes,
     /// The rays, for lanes that need the scalar test.
     pub(crate) rays: &'a [Ray],
@@ -39,12 +77,13 @@ pub struct RayPacket<'a> {
 
 impl<'a> RayPacket<'a> {
     /// The packet of up to [`PACKET`] rays (lane `i` is `rays[i]`), and the lanes'
-    /// initial `t_max`: the constants of [`WatertightRay::new`], lane by lane.
+    /// initial `t_max`: the constants of [`WatertightRay::new`], lane by lane, and
+    /// [`RayPacket::t_bound`] for triangles with their corners in `bounds`.
     ///
     /// # Safety
     /// The processor must support AVX-512F and DQ.
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
-    pub unsafe fn new(rays: &'a [Ray]) -> (RayPacket<'a>, [f32; PACKET]) {
+    pub unsafe fn new(rays: &'a [Ray], bounds: &Bounds3) -> (RayPacket<'a>, [f32; PACKET]) {
         use std::arch::x86_64::*;
         // SAFETY: the caller guarantees AVX-512F and DQ; `PacketLanes::new` checks the count.
         let (boxes, dv) = unsafe { PacketLanes::new(rays) };
@@ -64,6 +103,7 @@ impl<'a> RayPacket<'a> {
             axis4: [[0; PACKET]; 3],
             origin_permuted: [[0.0; PACKET]; 3],
             shear: [[0.0; PACKET]; 3],
+            t_bound: [[0.0; PACKET]; 2],
             boxes,
             rays,
         };
@@ -104,7 +144,37 @@ impl<'a> RayPacket<'a> {
             let neg = |v| _mm512_xor_ps(v, _mm512_set1_ps(-0.0));
             st(&mut p.shear[0], _mm512_div_ps(neg(pdx), pdz));
             st(&mut p.shear[1], _mm512_div_ps(neg(pdy), pdz));
-            st(&mut p.shear[2], _mm512_div_ps(_mm512_set1_ps(1.0), pdz));
+            let sz = _mm512_div_ps(_mm512_set1_ps(1.0), pdz);
+            st(&mut p.shear[2], sz);
+            // `t_bound` (the operations of the tests' scalar twin, `delta_t_bound`).
+            let c = _mm512_set1_ps;
+            let far = |k: usize| {
+                let (lo, hi) = (c(bounds.min[k]), c(bounds.max[k]));
+                _mm512_max_ps(
+                    _mm512_abs_ps(_mm512_sub_ps(lo, o[k])),
+                    _mm512_abs_ps(_mm512_sub_ps(hi, o[k])),
+                )
+            };
+            let r = _mm512_max_ps(_mm512_max_ps(far(0), far(1)), far(2));
+            let (xb, zb) = (
+                _mm512_mul_ps(c(2.0), r),
+                _mm512_mul_ps(r, _mm512_abs_ps(sz)),
+            );
+            let margin = c(DELTA_T_MARGIN);
+            let k1 = _mm512_add_ps(
+                _mm512_mul_ps(_mm512_mul_ps(c(6.0 * gamma(3)), zb), margin),
+                c(f32::MIN_POSITIVE),
+            );
+            let a = _mm512_add_ps(
+                _mm512_mul_ps(_mm512_mul_ps(c(gamma(2)), xb), xb),
+                _mm512_mul_ps(_mm512_mul_ps(c(2.0 * gamma(5)), _mm512_add_ps(xb, zb)), xb),
+            );
+            let k2 = _mm512_add_ps(
+                _mm512_mul_ps(_mm512_mul_ps(_mm512_mul_ps(c(6.0), zb), a), margin),
+                c(DELTA_T_UNDERFLOW),
+            );
+            st(&mut p.t_bound[0], k1);
+            st(&mut p.t_bound[1], k2);
             let sti =
                 |a: &mut [i32; PACKET], v| _mm512_storeu_si512(a.as_mut_ptr() as *mut __m512i, v);
             sti(&mut p.axis4[0], pick_i(x0, x1, [0, 4, 8]));
@@ -179,6 +249,7 @@ pub unsafe fn intersect_block<const ANY_HIT: bool, const COHERENT: bool>(
             ld(&packet.shear[2]),
         );
         let t_min = ld(&packet.boxes.t_min);
+        let (k1, k2) = (ld(&packet.t_bound[0]), ld(&packet.t_bound[1]));
         let mut t_max = ld(t_max_lanes);
         let zero = _mm512_setzero_ps();
         let mut any = 0u16;
@@ -247,44 +318,55 @@ pub unsafe fn intersect_block<const ANY_HIT: bool, const COHERENT: bool>(
             if !COHERENT || valid != 0 {
                 let inv_det = _mm512_div_ps(_mm512_set1_ps(1.0), det);
                 let t = _mm512_mul_ps(t_scaled, inv_det);
-                // Reject t that is not provably positive (as the block test).
+                // Reject t that is not provably positive (as the block test): lanes
+                // beyond the packet's `t_bound` are beyond `delta_t` too, and the rest
+                // (rare where the bound is tight) compute it.
                 let abs = |v| _mm512_abs_ps(v);
-                let max3 = |a, b, c| _mm512_max_ps(_mm512_max_ps(abs(a), abs(b)), abs(c));
-                let max_zt = max3(az, bz, cz);
-                let delta_z = _mm512_mul_ps(_mm512_set1_ps(gamma(3)), max_zt);
-                let max_xt = max3(ax, bx, cx);
-                let max_yt = max3(ay, by, cy);
-                let g5 = _mm512_set1_ps(gamma(5));
-                let delta_x = _mm512_mul_ps(g5, _mm512_add_ps(max_xt, max_zt));
-                let delta_y = _mm512_mul_ps(g5, _mm512_add_ps(max_yt, max_zt));
-                let delta_e = _mm512_mul_ps(
-                    _mm512_set1_ps(2.0),
-                    _mm512_add_ps(
-                        _mm512_add_ps(
-                            _mm512_mul_ps(_mm512_mul_ps(_mm512_set1_ps(gamma(2)), max_xt), max_yt),
-                            _mm512_mul_ps(delta_y, max_xt),
-                        ),
-                        _mm512_mul_ps(delta_x, max_yt),
-                    ),
-                );
-                let max_e = max3(e0, e1, e2);
-                let delta_t = _mm512_mul_ps(
-                    _mm512_mul_ps(
-                        _mm512_set1_ps(3.0),
+                let bound = _mm512_add_ps(k1, _mm512_mul_ps(k2, abs(inv_det)));
+                let far = _mm512_mask_cmp_ps_mask::<_CMP_GT_OQ>(valid, t, bound);
+                let near = valid & !far;
+                valid = far;
+                if near != 0 {
+                    let max3 = |a, b, c| _mm512_max_ps(_mm512_max_ps(abs(a), abs(b)), abs(c));
+                    let max_zt = max3(az, bz, cz);
+                    let delta_z = _mm512_mul_ps(_mm512_set1_ps(gamma(3)), max_zt);
+                    let max_xt = max3(ax, bx, cx);
+                    let max_yt = max3(ay, by, cy);
+                    let g5 = _mm512_set1_ps(gamma(5));
+                    let delta_x = _mm512_mul_ps(g5, _mm512_add_ps(max_xt, max_zt));
+                    let delta_y = _mm512_mul_ps(g5, _mm512_add_ps(max_yt, max_zt));
+                    let delta_e = _mm512_mul_ps(
+                        _mm512_set1_ps(2.0),
                         _mm512_add_ps(
                             _mm512_add_ps(
                                 _mm512_mul_ps(
-                                    _mm512_mul_ps(_mm512_set1_ps(gamma(3)), max_e),
-                                    max_zt,
+                                    _mm512_mul_ps(_mm512_set1_ps(gamma(2)), max_xt),
+                                    max_yt,
                                 ),
-                                _mm512_mul_ps(delta_e, max_zt),
+                                _mm512_mul_ps(delta_y, max_xt),
                             ),
-                            _mm512_mul_ps(delta_z, max_e),
+                            _mm512_mul_ps(delta_x, max_yt),
                         ),
-                    ),
-                    abs(inv_det),
-                );
-                valid = _mm512_mask_cmp_ps_mask::<_CMP_GT_OQ>(valid, t, delta_t);
+                    );
+                    let max_e = max3(e0, e1, e2);
+                    let delta_t = _mm512_mul_ps(
+                        _mm512_mul_ps(
+                            _mm512_set1_ps(3.0),
+                            _mm512_add_ps(
+                                _mm512_add_ps(
+                                    _mm512_mul_ps(
+                                        _mm512_mul_ps(_mm512_set1_ps(gamma(3)), max_e),
+                                        max_zt,
+                                    ),
+                                    _mm512_mul_ps(delta_e, max_zt),
+                                ),
+                                _mm512_mul_ps(delta_z, max_e),
+                            ),
+                        ),
+                        abs(inv_det),
+                    );
+                    valid |= _mm512_mask_cmp_ps_mask::<_CMP_GT_OQ>(near, t, delta_t);
+                }
                 any |= valid;
                 if !ANY_HIT {
                     t_max = _mm512_mask_mov_ps(t_max, valid, t);
@@ -336,5 +418,135 @@ pub unsafe fn intersect_block<const ANY_HIT: bool, const COHERENT: bool>(
             _mm512_storeu_ps(hp2, hb2);
         }
         any
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::mesh::delta_t;
+    use crate::sampling::Pcg32;
+    use glam::Vec3;
+
+    /// `RayPacket::t_bound` for one ray (the same operations): `origin` is the ray's and
+    /// `sz` its shear's `1/dz` ([`WatertightRay::shear`]'s `z`).
+    fn delta_t_bound(origin: Vec3, sz: f32, bounds: &Bounds3) -> (f32, f32) {
+        let d = (bounds.min - origin).abs().max((bounds.max - origin).abs());
+        let r = d.x.max(d.y).max(d.z);
+        let (xb, zb) = (2.0 * r, r * sz.abs());
+        let k1 = 6.0 * gamma(3) * zb * DELTA_T_MARGIN + f32::MIN_POSITIVE;
+        let k2 = 6.0 * zb * (gamma(2) * xb * xb + 2.0 * gamma(5) * (xb + zb) * xb) * DELTA_T_MARGIN
+            + DELTA_T_UNDERFLOW;
+        (k1, k2)
+    }
+
+    /// A packet's per-lane `delta_t_bound` constants are the scalar function's, bit for bit.
+    #[test]
+    fn packet_delta_t_bounds_equal_the_scalar_ones() {
+        if !crate::cpu::has_avx512() {
+            return;
+        }
+        let mut rng = Pcg32::new(3, 8);
+        let bounds = Bounds3::new(Vec3::new(-2.0, 0.5, -1.0), Vec3::new(3.0, 4.0, 0.25));
+        for n in [16, 5] {
+            let rays: Vec<Ray> = (0..n)
+                .map(|i| {
+                    let mut u = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+                    let o = (u() - 0.5) * 10f32.powi(i % 5 - 2);
+                    Ray::new(o, u() - 0.5)
+                })
+                .collect();
+            // SAFETY: the processor has AVX-512 (checked above).
+            let (packet, _) = unsafe { RayPacket::new(&rays, &bounds) };
+            for (i, ray) in rays.iter().enumerate() {
+                let wr = WatertightRay::new(ray);
+                let (k1, k2) = delta_t_bound(wr.origin, wr.shear().z, &bounds);
+                assert_eq!(packet.t_bound[0][i].to_bits(), k1.to_bits(), "lane {i}");
+                assert_eq!(packet.t_bound[1][i].to_bits(), k2.to_bits(), "lane {i}");
+            }
+        }
+    }
+
+    /// `delta_t_bound` is at least the scalar test's `delta_t` for every triangle in the
+    /// box that a ray passes strictly inside: triangles from 1e-6 to 1e6 across, far from
+    /// the origin or around it, rays from anywhere in the box (on the triangle too), and
+    /// the worst case the bound's proof allows (corners at the box's far corner from an
+    /// origin at its near one, along a diagonal, so `|x| = 2R`).
+    #[test]
+    fn delta_t_bound_covers_delta_t() {
+        let mut rng = Pcg32::new(11, 3);
+        let (mut inside, mut beyond, mut worst) = (0, 0, 0.0f32);
+        for i in 0..400_000u32 {
+            let mut u = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+            let scale = 10f32.powi((i % 13) as i32 - 6);
+            let far = Vec3::splat(10f32.powi((i / 13 % 9) as i32 - 2)) * (i / 117 % 2) as f32;
+            let size = scale * 10f32.powi(-((i / 234 % 4) as i32));
+            let (mut p, o, d);
+            if i % 5 == 0 {
+                // The worst case: corners near the box's corners, the ray along a diagonal
+                // from the opposite corner.
+                let c = far + Vec3::splat(scale);
+                p = [
+                    c,
+                    c - Vec3::new(size, 0.0, 0.0),
+                    c - Vec3::new(0.0, size, size * 0.5),
+                ];
+                for q in &mut p {
+                    *q += u() * size * 1e-3;
+                }
+                o = far - Vec3::splat(scale) + u() * scale * 1e-3;
+                let target = p[0] * 0.98 + p[1] * 0.01 + p[2] * 0.01;
+                d = target - o;
+            } else {
+                let c = far + u() * scale;
+                p = [c + u() * size, c + u() * size, c + u() * size];
+                let (r1, r2, r3) = (u().x * 0.25 + 0.25, u().y * 0.25 + 0.25, u().z + 1.5);
+                let target = p[0] + (p[1] - p[0]) * r1 + (p[2] - p[0]) * r2;
+                o = if i % 3 == 0 {
+                    target
+                } else {
+                    far + u() * scale
+                };
+                d = if i % 3 == 0 { u() } else { (target - o) * r3 };
+            }
+            let mut bounds = Bounds3::from_point(p[0]);
+            bounds.expand(p[1]);
+            bounds.expand(p[2]);
+            // The scalar test's quantities (`intersect_triangle_watertight`).
+            let wr = WatertightRay::new(&Ray::new(o, d));
+            let (kx, ky, kz) = wr.axes();
+            let s = wr.shear();
+            let v = p.map(|q| q - wr.origin);
+            let z = v.map(|a| a[kz]);
+            let x = [0, 1, 2].map(|j| v[j][kx] + s.x * z[j]);
+            let y = [0, 1, 2].map(|j| v[j][ky] + s.y * z[j]);
+            let e = [
+                x[1] * y[2] - y[1] * x[2],
+                x[2] * y[0] - y[2] * x[0],
+                x[0] * y[1] - y[0] * x[1],
+            ];
+            if !(e.iter().all(|&e| e > 0.0) || e.iter().all(|&e| e < 0.0)) {
+                continue;
+            }
+            inside += 1;
+            let inv_det = 1.0 / (e[0] + e[1] + e[2]);
+            let zs = z.map(|a| a * s.z);
+            let t = (e[0] * zs[0] + e[1] * zs[1] + e[2] * zs[2]) * inv_det;
+            let delta = delta_t(x, y, zs, e, inv_det);
+            let (k1, k2) = delta_t_bound(wr.origin, s.z, &bounds);
+            let bound = k1 + k2 * inv_det.abs();
+            assert!(
+                bound.is_nan() || delta.is_nan() || bound >= delta,
+                "case {i}: bound {bound} < delta_t {delta}"
+            );
+            beyond += (t > bound) as u32;
+            if bound.is_finite() && bound > 0.0 {
+                worst = worst.max(delta / bound);
+            }
+        }
+        // The bound is used (many hits are beyond it), and the worst cases come within a
+        // factor of two of it (0.91 when written).
+        assert!(inside > 100_000 && beyond > inside / 4, "{inside} {beyond}");
+        assert!(worst > 0.5, "worst delta_t / bound {worst}");
     }
 }
