@@ -87,9 +87,9 @@ pub struct TriangleMesh {
     /// The triangles in the order of the accelerator's leaves, four to a SIMD block,
     /// when the accelerator hands out whole leaves (the wide BVHs); empty otherwise.
     blocks: Vec<TriangleBlock>,
-    /// The box of the blocks' corners, exactly, where at least 90% of the triangles have
-    /// an area of [`DELTA_T_BOUND_AREA`] times the box's largest extent squared; else
-    /// empty. [`RayPacket::new`] bounds the triangle tests' `delta_t` from it.
+    /// The accelerator's box, where the mesh has blocks and at least 90% of its triangles
+    /// have an area of [`DELTA_T_BOUND_AREA`] times the box's largest extent squared;
+    /// else empty. [`RayPacket::new`] bounds the triangle tests' `delta_t` from it.
     delta_t_box: Bounds3,
     /// Whether the processor has the AVX2 tier (`crate::cpu`): the queries are then
     /// compiled for it.
@@ -494,6 +494,12 @@ fn first_where<T: Sync>(items: &[T], bad: impl Fn(&T) -> bool + Sync) -> Option<
 /// Items a parallel check ([`first_where`]) scans serially at a time.
 const CHECK_CHUNK: usize = 1 << 13;
 
+/// The area of the triangle with corners `p0`, `p1`, `p2`.
+#[inline]
+fn triangle_area(p0: Vec3, p1: Vec3, p2: Vec3) -> f32 {
+    0.5 * (p1 - p0).cross(p2 - p0).length()
+}
+
 /// The smallest triangle area, as a fraction of the square of the mesh box's largest
 /// extent, for which the packets' bound on `delta_t` pays (see
 /// [`TriangleMesh::delta_t_box`]): the bound passes hits at distance `t` on triangles of
@@ -567,38 +573,25 @@ impl TriangleMesh {
             Some(order) => pack_blocks(&data.positions, &data.indices, order),
             None => Vec::new(),
         };
-        let block_bounds = blocks
-            .par_iter()
-            .fold(Bounds3::default, |mut b, block| {
-                for lane in 0..BLOCK {
-                    let (p0, p1, p2) = block.triangle(lane);
-                    for p in [p0, p1, p2] {
-                        b.expand(p);
-                    }
-                }
-                b
-            })
-            .reduce(Bounds3::default, |a, b| a.union(&b));
         // The packets' bound on `delta_t` (`RayPacket::t_bound`) grows with the cube of
         // the box and shrinks with a triangle's area: with triangles this large against the
         // box most hits pass it; with smaller ones (the 69k-triangle bunny in the Cornell
         // box: 7% slower) they mostly do not, and the test that tries it first costs more
         // than it saves. An empty box makes the bound infinite: every hit takes `delta_t`.
-        let extent = (block_bounds.max - block_bounds.min).max_element();
-        let large = blocks
-            .par_iter()
-            .map(|block| {
-                (0..BLOCK)
-                    .filter(|&lane| {
-                        let (p0, p1, p2) = block.triangle(lane);
-                        0.5 * (p1 - p0).cross(p2 - p0).length()
-                            >= DELTA_T_BOUND_AREA * extent * extent
-                    })
-                    .count()
-            })
-            .sum::<usize>();
-        let delta_t_box = if large * 10 >= blocks.len() * BLOCK * 9 {
-            block_bounds
+        // (The accelerator's box contains every triangle, which is all the bound needs.)
+        let bounds = accel.bounds();
+        let extent = (bounds.max - bounds.min).max_element();
+        let large = || {
+            data.indices
+                .par_iter()
+                .filter(|t| {
+                    let [p0, p1, p2] = t.map(|i| positions[i as usize]);
+                    triangle_area(p0, p1, p2) >= DELTA_T_BOUND_AREA * extent * extent
+                })
+                .count()
+        };
+        let delta_t_box = if !blocks.is_empty() && large() * 10 >= data.indices.len() * 9 {
+            bounds
         } else {
             Bounds3::EMPTY
         };
@@ -693,7 +686,7 @@ impl TriangleMesh {
     #[inline]
     pub fn triangle_area(&self, prim: u32) -> f32 {
         let (p0, p1, p2) = self.vertices(prim);
-        0.5 * (p1 - p0).cross(p2 - p0).length()
+        triangle_area(p0, p1, p2)
     }
 
     /// Total object-space area.
