@@ -80,6 +80,7 @@ pub fn report(loaded: &LoadedScene, options: &RenderOptions, load_seconds: f64) 
     }
     lines.push(("bounds", bounds));
     lines.push(("accelerator memory", bytes(s.accel_bytes)));
+    lines.push(("simd tier", lightpath::simd_tier().name().to_string()));
     lines.push((
         "load time",
         format!("{load_seconds:.3} s (incl. accelerator build)"),

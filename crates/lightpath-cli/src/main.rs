@@ -32,6 +32,13 @@ use clap::{CommandFactory, Parser, Subcommand};
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Highest vector instruction tier to use: baseline (SSE2), avx2 or avx512 (default:
+    /// the processor's highest). Every tier gives the same images and hits bit for bit,
+    /// except where a ray hits two triangles at exactly the same distance; a lower one
+    /// is for comparing tiers' speeds, or for tools such as valgrind that do not decode
+    /// the higher tiers' instructions.
+    #[arg(long, global = true, value_parser = names::SIMD_TIERS, value_name = "TIER")]
+    simd: Option<String>,
 }
 
 #[derive(Subcommand)]
@@ -60,6 +67,9 @@ enum Command {
 fn main() {
     logger::init(false, false);
     let cli = Cli::parse();
+    if let Some(tier) = cli.simd.as_deref().and_then(lightpath::SimdTier::from_name) {
+        lightpath::limit_simd_tier(tier);
+    }
     let result: Result<bool> = match cli.command {
         Command::Render(args) => render::run(args).map(|_| true),
         Command::Test(args) => test::run(args),

@@ -1,5 +1,5 @@
 //! Command-line values that are one of a list of names (`--accel`, `--sampler`,
-//! `--tonemap`, `--aov`): a clap value parser that rejects a typo with the nearest valid name
+//! `--tonemap`, `--aov`, `--simd`): a clap value parser that rejects a typo with the nearest valid name
 //! ("did you mean ...?") and tells shell completions the names.
 
 use clap::builder::{PossibleValue, TypedValueParser};
@@ -19,6 +19,9 @@ pub const SAMPLERS: NameParser = NameParser {
 };
 pub const AOVS: NameParser = NameParser {
     names: lightpath::integrator::AovLayer::NAMES,
+};
+pub const SIMD_TIERS: NameParser = NameParser {
+    names: lightpath::SimdTier::NAMES,
 };
 pub const TONEMAPS: NameParser = NameParser {
     names: lightpath::film::Tonemap::NAMES,

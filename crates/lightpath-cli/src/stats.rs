@@ -91,6 +91,8 @@ impl Report {
             "height": self.height,
             "spp": self.spp,
             "passes": self.passes,
+            "threads": rayon::current_num_threads(),
+            "simd": lightpath::simd_tier().name(),
         })
     }
 

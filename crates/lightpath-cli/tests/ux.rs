@@ -495,6 +495,7 @@ fn info_and_verbose_describe_the_scene() {
         "materials           1 (diffuse 1); 1 instances without a material",
         "accelerator memory",
         "bounds",
+        "simd tier           ",
     ] {
         assert!(stdout.contains(needle), "`{needle}` missing in\n{stdout}");
     }

@@ -19,11 +19,80 @@
 //! these two lists in full. FMA being enabled changes no result: Rust never fuses a
 //! multiplication and an addition on its own, only where the code asks for it.
 
-/// Whether the processor has the AVX2 tier.
+use std::sync::atomic::{AtomicU8, Ordering};
+
+/// A vector instruction tier, lowest first (see the module notes).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum SimdTier {
+    /// Baseline x86-64 (SSE2), or the target's own baseline elsewhere.
+    Baseline,
+    /// AVX2 with FMA, BMI1, BMI2, LZCNT and POPCNT.
+    Avx2,
+    /// The AVX2 tier and AVX-512 F, VL, DQ and BW.
+    Avx512,
+}
+
+impl SimdTier {
+    /// Every tier, lowest first.
+    pub const ALL: [SimdTier; 3] = [SimdTier::Baseline, SimdTier::Avx2, SimdTier::Avx512];
+
+    /// The tiers' names on the command line, lowest first.
+    pub const NAMES: &'static [&'static str] = &["baseline", "avx2", "avx512"];
+
+    /// The tier's name on the command line: `baseline`, `avx2` or `avx512`.
+    pub fn name(self) -> &'static str {
+        SimdTier::NAMES[self as usize]
+    }
+
+    /// The tier called `name` ([`SimdTier::name`]).
+    pub fn from_name(name: &str) -> Option<SimdTier> {
+        SimdTier::ALL.into_iter().find(|t| t.name() == name)
+    }
+}
+
+/// The highest tier the crate may use, as a [`SimdTier`] discriminant.
+static LIMIT: AtomicU8 = AtomicU8::new(SimdTier::Avx512 as u8);
+
+/// Caps the tiers the crate uses at `tier`, for the whole process: from then on the
+/// crate runs no code of a higher tier, even where the processor has it. Every tier
+/// gives the same results, bit for bit (but see below); a cap is for comparing tiers' speeds, and for
+/// tools that do not decode the higher tiers' instructions (valgrind 3.19 stops at some
+/// AVX2 ones). Set it before building scenes: a mesh or tree built before keeps the tier
+/// it was built for.
+///
+/// Where a ray hits two triangles at exactly the same distance (a shared edge), either
+/// may be reported, and the tiers' trees and traversals may pick differently: on
+/// Mitsuba's Cornell box (128², 16 spp) one pixel in 16,384 differs between tiers.
+pub fn limit_simd_tier(tier: SimdTier) {
+    LIMIT.store(tier as u8, Ordering::Relaxed);
+}
+
+/// The highest tier the crate uses here: the processor's (and this build's) highest,
+/// or the cap of [`limit_simd_tier`] if lower.
+pub fn simd_tier() -> SimdTier {
+    #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+    if has_avx512() {
+        return SimdTier::Avx512;
+    }
+    if has_avx2() {
+        SimdTier::Avx2
+    } else {
+        SimdTier::Baseline
+    }
+}
+
+/// Whether [`limit_simd_tier`] allows `tier`.
+#[inline]
+pub(crate) fn allowed(tier: SimdTier) -> bool {
+    LIMIT.load(Ordering::Relaxed) >= tier as u8
+}
+
+/// Whether the processor has the AVX2 tier (and the cap allows it).
 pub(crate) fn has_avx2() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        std::arch::is_x86_feature_detected!("avx2")
+        allowed(SimdTier::Avx2)
+            && std::arch::is_x86_feature_detected!("avx2")
             && std::arch::is_x86_feature_detected!("fma")
             && std::arch::is_x86_feature_detected!("bmi1")
             && std::arch::is_x86_feature_detected!("bmi2")
@@ -98,10 +167,12 @@ pub(crate) fn leaf_blocks_per_test() -> u32 {
     })
 }
 
-/// Whether the processor has the AVX-512 tier (which includes the AVX2 tier).
+/// Whether the processor has the AVX-512 tier (which includes the AVX2 tier), and the
+/// cap allows it.
 #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
 pub(crate) fn has_avx512() -> bool {
-    has_avx2()
+    allowed(SimdTier::Avx512)
+        && has_avx2()
         && std::arch::is_x86_feature_detected!("avx512f")
         && std::arch::is_x86_feature_detected!("avx512vl")
         && std::arch::is_x86_feature_detected!("avx512dq")

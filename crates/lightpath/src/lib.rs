@@ -24,6 +24,7 @@ pub mod sampling;
 pub mod scene;
 pub mod texture;
 
+pub use cpu::{limit_simd_tier, simd_tier, SimdTier};
 pub use error::{Error, Location, Result};
 
 /// The types most programs need.

@@ -13,10 +13,11 @@
 //! together with the starts and ends, counting the primitives below and above each
 //! position (merging instead of sorting the candidates again builds the same trees,
 //! bunny_loop2's about 14% faster). Each candidate costs `C_trav + C_isect · (1 − b) ·
-//! (p_below · n_below + p_above · n_above)`, with `p` the children's surface areas relative to the node's
-//! and `b` = [`EMPTY_BONUS`] when a side is empty. A primitive whose box touches the
-//! plane goes to both sides (the sweep counts it on both, so the costs match the
-//! split), which also keeps hits exactly on a plane and rays lying in a plane correct.
+//! (p_below · n_below + p_above · n_above)`, with `p` the children's surface areas
+//! relative to the node's and `b` = [`EMPTY_BONUS`] when a side is empty. A primitive
+//! whose box touches the plane goes to both sides (the sweep counts it on both, so the
+//! costs match the split), which also keeps hits exactly on a plane and rays lying in a
+//! plane correct.
 //! A node becomes a leaf at [`MAX_PRIMS`] primitives, at depth `8 + 1.3 · log2 N`, or
 //! where its best split costs more than the leaf. Subtrees of large nodes build in
 //! parallel.

@@ -343,13 +343,15 @@ impl Lanes {
     fn detect() -> Lanes {
         #[cfg(target_arch = "x86_64")]
         {
-            if std::arch::is_x86_feature_detected!("avx512dq")
+            use crate::cpu::{allowed, SimdTier};
+            if allowed(SimdTier::Avx512)
+                && std::arch::is_x86_feature_detected!("avx512dq")
                 && std::arch::is_x86_feature_detected!("avx512vl")
                 && std::arch::is_x86_feature_detected!("avx512bw")
             {
                 return Lanes::Avx512;
             }
-            if std::arch::is_x86_feature_detected!("avx2") {
+            if allowed(SimdTier::Avx2) && std::arch::is_x86_feature_detected!("avx2") {
                 return Lanes::Avx2;
             }
         }
