@@ -66,16 +66,21 @@ for s in independent sobol; do
     row "lightpath $s" 64 "$T" "$(relmse "$OUT/lp-$s.exr")"
     # Equal time: as many samples as fit in Mitsuba llvm's 64-spp time (median), first
     # estimated from the 64-spp speed, then fewer while the render takes longer than
-    # Mitsuba's. The Sobol sampler is used at a power of two, as its documentation
-    # advises (other counts stratify worse and shuffle more slowly).
+    # Mitsuba's (the same for both samplers: an Owen-scrambled Sobol prefix of any
+    # length is unbiased, though powers of two stratify best and shuffle fastest).
+    # For Sobol the largest power of two that fits is rendered too.
     SPP=$(echo "64 * $T_MI / $T" | bc -l | awk '{n=int($1+0.5); if(n<1)n=1; print n}')
-    if [ $s = sobol ]; then
-        P=1; while [ $((P * 2)) -le "$SPP" ]; do P=$((P * 2)); done; SPP=$P
-    fi
     while :; do
         T2=$(lightpath $s "$SPP" "$OUT/lp-$s-eq.exr")
         if [ "$SPP" -le 1 ] || [ "$(echo "$T2 <= $T_MI" | bc -l)" = 1 ]; then break; fi
-        if [ $s = sobol ]; then SPP=$((SPP / 2)); else SPP=$((SPP - 1)); fi
+        SPP=$((SPP - 1))
     done
     row "lightpath $s (equal time)" "$SPP" "$T2" "$(relmse "$OUT/lp-$s-eq.exr")"
+    if [ $s = sobol ]; then
+        P=1; while [ $((P * 2)) -le "$SPP" ]; do P=$((P * 2)); done
+        if [ "$P" != "$SPP" ]; then
+            T2=$(lightpath $s "$P" "$OUT/lp-$s-eq2.exr")
+            row "lightpath $s (equal time, 2^k)" "$P" "$T2" "$(relmse "$OUT/lp-$s-eq2.exr")"
+        fi
+    fi
 done

@@ -202,7 +202,9 @@ impl PathTracer {
     /// environment's light. The path ends.
     #[inline(always)]
     pub(crate) fn miss(&self, scene: &Scene, path: &mut PathState) {
-        if self.hide_emitters && path.prev.is_none() {
+        // Without an environment there is nothing to add (and nothing to normalise:
+        // the path tracer's paths mostly leave closed scenes this way, if at all).
+        if scene.environment.is_none() || (self.hide_emitters && path.prev.is_none()) {
             return;
         }
         let dir = path.ray.direction.normalize();
