@@ -156,15 +156,14 @@ fn splits_256_bit_on(vendor: &[u8; 12], signature: u32) -> bool {
 /// the processor has the AVX2 tier and full-width 256-bit units, else one (4 lanes,
 /// see [`splits_256_bit`]). The 8-wide BVH's collapse prices leaves by these tests, and
 /// the mesh's leaf test pairs blocks only where this is two.
+/// (The cap of [`limit_simd_tier`] is read at every call; the processor's family once.)
 pub(crate) fn leaf_blocks_per_test() -> u32 {
-    static BLOCKS: std::sync::OnceLock<u32> = std::sync::OnceLock::new();
-    *BLOCKS.get_or_init(|| {
-        if has_avx2() && !splits_256_bit() {
-            2
-        } else {
-            1
-        }
-    })
+    static SPLITS: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    if has_avx2() && !*SPLITS.get_or_init(splits_256_bit) {
+        2
+    } else {
+        1
+    }
 }
 
 /// Whether the processor has the AVX-512 tier (which includes the AVX2 tier), and the
