@@ -1,6 +1,6 @@
 //! Command-line values that are one of a list of names (`--accel`, `--sampler`,
-//! `--tonemap`, `--aov`, `--simd`): a clap value parser that rejects a typo with the nearest valid name
-//! ("did you mean ...?") and tells shell completions the names.
+//! `--tonemap`, `--aov`, `--simd`): a clap value parser that rejects a typo with the
+//! nearest valid name ("did you mean ...?") and tells shell completions the names.
 
 use clap::builder::{PossibleValue, TypedValueParser};
 use clap::error::ErrorKind;

@@ -55,10 +55,10 @@ static LIMIT: AtomicU8 = AtomicU8::new(SimdTier::Avx512 as u8);
 
 /// Caps the tiers the crate uses at `tier`, for the whole process: from then on the
 /// crate runs no code of a higher tier, even where the processor has it. Every tier
-/// gives the same results, bit for bit (but see below); a cap is for comparing tiers' speeds, and for
-/// tools that do not decode the higher tiers' instructions (valgrind 3.19 stops at some
-/// AVX2 ones). Set it before building scenes: a mesh or tree built before keeps the tier
-/// it was built for.
+/// gives the same results, bit for bit (but see below); a cap is for comparing tiers'
+/// speeds, and for tools that do not decode the higher tiers' instructions (valgrind
+/// 3.19 stops at some AVX2 ones). Set it before building scenes: a mesh or tree built
+/// before keeps the tier it was built for.
 ///
 /// Where a ray hits two triangles at exactly the same distance (a shared edge), either
 /// may be reported, and the tiers' trees and traversals may pick differently: on

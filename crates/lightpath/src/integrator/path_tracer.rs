@@ -202,8 +202,8 @@ impl PathTracer {
     /// environment's light. The path ends.
     #[inline(always)]
     pub(crate) fn miss(&self, scene: &Scene, path: &mut PathState) {
-        // Without an environment there is nothing to add (and nothing to normalise:
-        // the path tracer's paths mostly leave closed scenes this way, if at all).
+        // Without an environment, a ray that leaves the scene brings no light: nothing
+        // to normalise or look up.
         if scene.environment.is_none() || (self.hide_emitters && path.prev.is_none()) {
             return;
         }
