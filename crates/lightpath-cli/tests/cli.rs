@@ -363,6 +363,26 @@ fn rays_command_traces_ray_files() {
     for o in &outputs[1..] {
         assert_eq!(o, &outputs[0]);
     }
+    // The wide trees' traversals and leaf tests under every vector instruction tier
+    // (a tier the processor lacks runs as its highest).
+    for tier in ["baseline", "avx2", "avx512"] {
+        for accel in ["bvh4", "bvh8"] {
+            let hits = format!("{accel}-{tier}.hits");
+            let out = lightpath(
+                &[
+                    "rays", "m.obj", "r.rays", &hits, "--accel", accel, "--simd", tier, "-q",
+                ],
+                &dir,
+            );
+            assert!(
+                out.status.success(),
+                "{}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            let got = std::fs::read(dir.join(&hits)).unwrap();
+            assert_eq!(got, outputs[0], "{accel} --simd {tier}");
+        }
+    }
     let rec = |i: usize| {
         let r = &outputs[0][8 * i..8 * i + 8];
         (
