@@ -2,8 +2,8 @@
 # Instructions executed (callgrind's Ir) by a small fixed render: the Cornell box at
 # 64x64, 4 spp, depth 8, one thread. A render is a pure function of its inputs, so the
 # count repeats to within about 0.01% (the thread pool's start-up varies) where timings
-# on a shared machine vary by 10-15%: use it
-# to compare two builds of a change that is too small to time. (valgrind hides AVX-512
+# on a shared machine vary by 10-15%: use it to compare two builds of a change that is
+# too small to time. (valgrind hides AVX-512
 # from the program, so the AVX2 paths are the ones counted. valgrind 3.19, Debian 12's,
 # stops at some AVX2 instructions; the script then counts the baseline code instead,
 # `--simd baseline`, and says so. SIMD=baseline picks that tier from the start.)

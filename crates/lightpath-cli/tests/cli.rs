@@ -905,10 +905,8 @@ fn tie_free_box(dir: &Path) -> PathBuf {
             let q = [p(-1., -1.), p(1., -1.), p(1., 1.), p(-1., 1.)];
             // Outward: away from the block's centre.
             let centre = corner(0., 0., 0.);
-            let mid: Vec<f32> = (0..3)
-                .map(|a| (q[0][a] + q[2][a]) / 2.0 - centre[a])
-                .collect();
-            block.extend(quad(q, [mid[0], mid[1], mid[2]]));
+            let outward: [f32; 3] = std::array::from_fn(|a| (q[0][a] + q[2][a]) / 2.0 - centre[a]);
+            block.extend(quad(q, outward));
         }
     }
     obj("block.obj", &block);
