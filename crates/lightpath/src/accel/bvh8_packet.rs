@@ -11,9 +11,10 @@
 //! traversal). The triangle mesh's leaf callback does the same at a leaf that few of
 //! the rays enter: each ray alone against the leaf's triangles, eight at a time.
 //!
-//! Order: the hit children are visited nearest first by the least entry distance over
-//! their rays; an entry popped from the stack keeps only the rays whose closest hit so
-//! far lies beyond that distance. Box tests are conservative as in single-ray traversal
+//! Order: for closest hits, the hit children are visited nearest first by the least
+//! entry distance over their rays, and an entry popped from the stack keeps only the
+//! rays whose closest hit so far lies beyond that distance; any-hit (shadow) packets
+//! take the children in slot order, as single rays do. Box tests are conservative as in single-ray traversal
 //! (far planes widened by the same factor). A ray with a zero (or tiny) direction
 //! component, whose reciprocal is not finite, is inside a slab of that axis when its
 //! origin lies between the planes or on one (a packet with such rays takes a variant of
@@ -370,13 +371,26 @@ impl Bvh8 {
                     }
                     let m = _mm512_mask_cmp_ps_mask::<_CMP_LE_OQ>(inside, near, far);
                     if m != 0 {
-                        hits[n] = (m, _mm512_mask_reduce_min_ps(m, near), c as u32);
+                        // An any-hit query needs no distances: its rays' ranges never
+                        // shrink, and it takes the children in slot order.
+                        let dist = if ANY_HIT {
+                            f32::NEG_INFINITY
+                        } else {
+                            _mm512_mask_reduce_min_ps(m, near)
+                        };
+                        hits[n] = (m, dist, c as u32);
                         n += 1;
                     }
                 }
-                // Push the farthest first, so the nearest is popped next.
                 let hits = &mut hits[..n];
-                hits.sort_unstable_by(|a, b| b.1.total_cmp(&a.1));
+                if ANY_HIT {
+                    // The lowest slot on top, as single-ray any-hit traversal visits them
+                    // (sorting by distance cost 3-5% of the Cornell box's shadow packets).
+                    hits.reverse();
+                } else {
+                    // The farthest first, so the nearest is popped next.
+                    hits.sort_unstable_by(|a, b| b.1.total_cmp(&a.1));
+                }
                 for &(m, dist, c) in hits.iter() {
                     let c = c as usize;
                     stack[sp].write(PacketEntry {
