@@ -1,6 +1,7 @@
 //! `lightpath bench MESH --rays DIR`: build time, memory and traversal speed of the
 //! acceleration structures on the ray sets `embree-bench gen-rays` writes (primary,
-//! random, diffuse: closest hit; shadow: any hit), timed the way embree-bench times them:
+//! random, diffuse: closest hit; shadow: any hit) and a path tracer's own rays that
+//! `lightpath render --record-rays` writes (paths: closest hit; shadow: any hit), timed the way embree-bench times them:
 //! one untimed warm-up, then the median of `--reps` passes, file I/O excluded, single-
 //! threaded and on all threads (ray by ray, each thread takes the next 1,024 rays from a
 //! shared counter, as embree-bench's threads do). `--json FILE` writes embree-bench's key
@@ -28,7 +29,8 @@ pub struct BenchArgs {
     /// Triangle mesh (.ply or .obj).
     pub mesh: PathBuf,
     /// Folder with primary.rays, random.rays, diffuse.rays, shadow.rays (from
-    /// `embree-bench gen-rays MESH --outdir DIR`); missing sets are skipped.
+    /// `embree-bench gen-rays MESH --outdir DIR`) or paths.rays and shadow.rays (from
+    /// `lightpath render --record-rays DIR`); missing sets are skipped.
     #[arg(long)]
     pub rays: PathBuf,
     /// Accelerators to measure (repeatable): list, bvh2, bvh4, bvh8, bvh2-hq, bvh4-hq,
@@ -75,11 +77,13 @@ enum Mode {
     Packet,
 }
 
-const SETS: [(&str, bool); 4] = [
+const SETS: [(&str, bool); 5] = [
     ("primary", false),
     ("random", false),
     ("shadow", true),
     ("diffuse", false),
+    // A path tracer's own closest-hit rays (`lightpath render --record-rays`).
+    ("paths", false),
 ];
 
 /// A table cell for a speed in Mrays/s: two decimals from 1 up, and at least three
@@ -224,16 +228,17 @@ pub fn run(args: BenchArgs) -> Result<()> {
     }
     if sets.is_empty() {
         bail!(
-            "{}: no primary/random/shadow/diffuse .rays files (make them with `embree-bench gen-rays MESH --outdir DIR`)",
+            "{}: no primary/random/shadow/diffuse/paths .rays files (make them with `embree-bench gen-rays MESH --outdir DIR` or `lightpath render --record-rays DIR`)",
             args.rays.display()
         );
     }
     let all = rayon::current_num_threads();
     let single = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
     let mut report = serde_json::Map::new();
+    let columns: String = sets.iter().map(|(set, ..)| format!(" {set:>8}")).collect();
     println!(
-        "{:<11} {:>9} {:>9} {:>8} | {:>8} {:>8} {:>8} {:>8}  (Mrays/s, 1 thread / {all} threads)",
-        "accel", "build ms", "bytes/tri", "MB", "primary", "random", "shadow", "diffuse"
+        "{:<11} {:>9} {:>9} {:>8} |{columns}  (Mrays/s, 1 thread / {all} threads)",
+        "accel", "build ms", "bytes/tri", "MB"
     );
     for (name, kind) in &kinds {
         // Build: warm-up, then the median of the passes (the BVH builds in parallel).

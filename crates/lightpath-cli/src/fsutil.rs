@@ -5,7 +5,8 @@ use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-fn temp_path(path: &Path) -> Result<PathBuf> {
+/// A fresh temporary path beside `path`, for a file written there and then renamed.
+pub fn temp_path(path: &Path) -> Result<PathBuf> {
     static COUNTER: AtomicUsize = AtomicUsize::new(0);
     let name = path
         .file_name()

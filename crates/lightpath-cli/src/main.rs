@@ -12,6 +12,7 @@ mod logger;
 mod names;
 mod progress;
 mod rays;
+mod record;
 mod render;
 mod stats;
 mod summary;
@@ -44,7 +45,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Render a scene to an image (with no SCENE, a built-in default scene).
-    Render(render::RenderArgs),
+    Render(Box<render::RenderArgs>),
     /// Render lightwave test scenes and compare them with their reference images.
     Test(test::TestArgs),
     /// Print error metrics between two images.
@@ -71,7 +72,7 @@ fn main() {
         lightpath::limit_simd_tier(tier);
     }
     let result: Result<bool> = match cli.command {
-        Command::Render(args) => render::run(args).map(|_| true),
+        Command::Render(args) => render::run(*args).map(|_| true),
         Command::Test(args) => test::run(args),
         Command::Compare(args) => compare::run(args).map(|_| true),
         Command::Info(args) => info::run(args).map(|_| true),

@@ -2,6 +2,7 @@
 //! progressively: `--time` stops at a time budget, `--preview` rewrites a preview image
 //! as passes finish, `--tev` streams the passes to the tev viewer.
 
+use crate::record::RayRecorder;
 use crate::stats::Report;
 use crate::summary::{by_kind, bytes, SceneSummary};
 use crate::tev::Tev;
@@ -12,7 +13,7 @@ use lightpath::film::Image;
 use lightpath::integrator::{AovLayer, Integrator};
 use lightpath::io::image::ExrChannel;
 use lightpath::io::{self, LoadedScene};
-use lightpath::render::{RenderControl, RenderStats, Rendered, Renderer};
+use lightpath::render::{RayBatch, RenderControl, RenderStats, Rendered, Renderer};
 use lightpath::scene::CropWindow;
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
@@ -63,6 +64,13 @@ pub struct RenderArgs {
     /// Log what was loaded: instances, meshes, triangles, lights, accelerator memory.
     #[arg(short, long)]
     pub verbose: bool,
+    /// Write the path tracer's rays into DIR as it traces them (paths.rays: closest-hit
+    /// queries; shadow.rays: occlusion queries; embree-bench's ray format) with the
+    /// scene's triangles (scene.obj), for timing a tracer on a real workload:
+    /// `lightpath bench DIR/scene.obj --rays DIR --packet`. Needs the path tracer, a
+    /// scene whose geometry merges into one triangle mesh, and the AVX2 tier.
+    #[arg(long, value_name = "DIR")]
+    pub record_rays: Option<PathBuf>,
     #[command(flatten)]
     pub tone: ToneArgs,
     #[command(flatten)]
@@ -172,7 +180,29 @@ pub fn run(args: RenderArgs) -> Result<()> {
         tev.as_mut(),
         quiet,
     );
-    let rendered = render_loaded(&loaded, &args.options, args.time, interval, &mut live)?;
+    let recorder = match &args.record_rays {
+        Some(dir) => Some(start_recording(&loaded, &args.options, dir)?),
+        None => None,
+    };
+    let rendered = render_loaded(
+        &loaded,
+        &args.options,
+        args.time,
+        interval,
+        recorder.as_ref(),
+        &mut live,
+    )?;
+    if let (Some(recorder), Some(dir)) = (recorder, &args.record_rays) {
+        let recorded = recorder.finish()?;
+        if !quiet {
+            eprintln!(
+                "recorded {} path rays and {} shadow rays in {}",
+                recorded.path_rays,
+                recorded.shadow_rays,
+                dir.display()
+            );
+        }
+    }
 
     let write_start = Instant::now();
     if layers.is_empty() {
@@ -386,6 +416,7 @@ pub fn render_loaded(
     options: &RenderOptions,
     time: Option<Duration>,
     pass_interval: Option<Duration>,
+    record: Option<&RayRecorder>,
     live: &mut Live,
 ) -> Result<Rendered> {
     let camera = loaded
@@ -408,6 +439,7 @@ pub fn render_loaded(
         sampler: &sampler,
     };
     let report = progress::callback(&bar);
+    let record_batch = record.map(|r| move |batch: RayBatch<'_>| r.record(batch));
     let control = RenderControl {
         max_spp: match (options.spp, time) {
             (Some(n), _) => Some(n),
@@ -419,6 +451,7 @@ pub fn render_loaded(
         // Passes only serve previews, tev and time budgets.
         single_pass: time.is_none() && pass_interval.is_none(),
         progress: Some(&report),
+        ray_batches: record_batch.as_ref().map(|f| f as _),
     };
     let result = renderer.render_progressive(&control, &mut |pass| {
         for w in live.show(pass.image, pass.spp, pass.last) {
@@ -436,6 +469,38 @@ pub fn render_loaded(
     Ok(rendered)
 }
 
+/// The recorder of `--record-rays DIR`, once the render is known to trace its rays in
+/// batches ([`Renderer::batches_rays`]), with the scene's triangles written to DIR.
+fn start_recording(
+    loaded: &LoadedScene,
+    options: &RenderOptions,
+    dir: &Path,
+) -> Result<RayRecorder> {
+    let integrator = options.integrator(&loaded.integrator)?;
+    let sampler = options.sampler(&loaded.sampler)?;
+    let camera = loaded
+        .scene
+        .camera
+        .as_ref()
+        .context("the scene has no camera")?;
+    let renderer = Renderer {
+        scene: &loaded.scene,
+        camera,
+        integrator: &integrator,
+        sampler: &sampler,
+    };
+    let triangles = loaded.scene.merged_triangles();
+    let (Some((positions, indices)), true) = (triangles, renderer.batches_rays()) else {
+        anyhow::bail!(
+            "--record-rays: this render traces its rays one by one inside the integrator, \
+             not in batches; recording needs the path tracer, a scene whose geometry merges \
+             into one triangle mesh (no analytic shapes, curves or separately instanced \
+             meshes) and a processor with AVX2 (not capped by --simd baseline)"
+        );
+    };
+    RayRecorder::new(dir, positions, indices)
+}
+
 /// Renders a loaded scene to the requested samples per pixel.
 pub fn render_image(loaded: &LoadedScene, options: &RenderOptions) -> Result<(Image, RenderStats)> {
     let tone = ToneArgs {
@@ -445,6 +510,7 @@ pub fn render_image(loaded: &LoadedScene, options: &RenderOptions) -> Result<(Im
     let out = render_loaded(
         loaded,
         options,
+        None,
         None,
         None,
         &mut Live::new(None, &tone, None, true),

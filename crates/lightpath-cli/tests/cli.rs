@@ -989,3 +989,179 @@ fn every_simd_tier_renders_the_same_image() {
         }
     }
 }
+
+fn read_ray_file(path: &Path) -> Vec<[f32; 8]> {
+    let bytes = std::fs::read(path).unwrap();
+    assert_eq!(
+        bytes.len() % 32,
+        0,
+        "{}: whole 32-byte records",
+        path.display()
+    );
+    bytes
+        .chunks_exact(32)
+        .map(|r| {
+            std::array::from_fn(|i| f32::from_le_bytes(r[4 * i..4 * i + 4].try_into().unwrap()))
+        })
+        .collect()
+}
+
+/// `--record-rays` writes every ray the path tracer traces, as the render's statistics
+/// count them (camera and bounce rays in paths.rays, shadow rays in shadow.rays), with
+/// the scene's triangles; on a processor without AVX2, or capped to the baseline, the
+/// render traces no batches and says so.
+#[test]
+fn record_rays_writes_every_traced_ray() {
+    let dir = temp_dir("record");
+    let scene = tie_free_box(&dir);
+    let out = lightpath(
+        &[
+            "render",
+            scene.to_str().unwrap(),
+            "-q",
+            "--spp",
+            "2",
+            "--threads",
+            "1",
+            "-o",
+            "out.exr",
+            "--record-rays",
+            "rec",
+            "--stats-json",
+            "stats.json",
+        ],
+        &dir,
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let stats = std::fs::read_to_string(dir.join("stats.json"));
+    let simd = stats.as_ref().map_or(String::new(), |s| {
+        serde_json::from_str::<serde_json::Value>(s).unwrap()["simd"]
+            .as_str()
+            .unwrap()
+            .to_string()
+    });
+    if !out.status.success() && stderr.contains("AVX2") {
+        // Only a processor without AVX2 may refuse (then no statistics were written).
+        let info = lightpath(&["info", scene.to_str().unwrap()], &dir);
+        assert!(
+            String::from_utf8_lossy(&info.stdout).contains("baseline"),
+            "{stderr}"
+        );
+        return;
+    }
+    assert!(out.status.success(), "{stderr}");
+    assert_ne!(simd, "baseline");
+    let stats: serde_json::Value = serde_json::from_str(&stats.unwrap()).unwrap();
+    let kinds = &stats["rays_by_kind"];
+    let count = |k: &str| kinds[k].as_u64().unwrap() as usize;
+    let paths = read_ray_file(&dir.join("rec/paths.rays"));
+    let shadow = read_ray_file(&dir.join("rec/shadow.rays"));
+    assert_eq!(paths.len(), count("camera") + count("bounce"));
+    assert_eq!(shadow.len(), count("shadow"));
+    assert_eq!(
+        count("camera"),
+        40 * 32 * 2,
+        "every pixel's two camera rays"
+    );
+    assert!(
+        shadow.len() > 1000,
+        "the light is sampled: {}",
+        shadow.len()
+    );
+    // The pinhole's rays leave its eye; every ray's direction and range are usable.
+    let eye = [0.0, 0.0, 3.4];
+    let from_eye = paths
+        .iter()
+        .filter(|r| (0..3).all(|a| (r[a] - eye[a]).abs() < 1e-5));
+    assert!(from_eye.count() >= count("camera"));
+    for r in paths.iter().chain(&shadow) {
+        assert!(
+            r.iter().all(|v| !v.is_nan()) && r[3] >= 0.0 && r[7] > r[3],
+            "{r:?}"
+        );
+        assert!(r[4] != 0.0 || r[5] != 0.0 || r[6] != 0.0, "{r:?}");
+    }
+    assert!(
+        shadow.iter().all(|r| r[7].is_finite()),
+        "shadow rays end at the light"
+    );
+    // The triangles: the scene's five meshes, merged, as the mesh loader reads them.
+    let faces = |name: &str| {
+        std::fs::read_to_string(dir.join(name))
+            .unwrap()
+            .lines()
+            .filter(|l| l.starts_with("f "))
+            .count()
+    };
+    let all = [
+        "walls.obj",
+        "red.obj",
+        "green.obj",
+        "block.obj",
+        "light.obj",
+    ]
+    .iter()
+    .map(|n| faces(n))
+    .sum::<usize>();
+    assert_eq!(faces("rec/scene.obj"), all);
+    // And Embree's formats: `lightpath rays` traces them against those triangles, every
+    // camera ray and bounce meeting the closed box but where it looks out of its open side.
+    let traced = lightpath(
+        &["rays", "rec/scene.obj", "rec/paths.rays", "hits.bin", "-q"],
+        &dir,
+    );
+    assert!(
+        traced.status.success(),
+        "{}",
+        String::from_utf8_lossy(&traced.stderr)
+    );
+    let hits = std::fs::read(dir.join("hits.bin")).unwrap();
+    assert_eq!(hits.len(), 8 * paths.len());
+    let hit = hits
+        .chunks_exact(8)
+        .filter(|h| f32::from_le_bytes(h[..4].try_into().unwrap()).is_finite())
+        .count();
+    assert!(hit > paths.len() / 2, "{hit} of {} rays hit", paths.len());
+    let names: Vec<String> = std::fs::read_dir(dir.join("rec"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    assert_eq!(names.len(), 3, "no temporary files left: {names:?}");
+}
+
+/// A render that traces its rays inside the integrator (here: an analytic sphere, which
+/// does not merge into one mesh) cannot record them: a clear error before rendering, and
+/// no output.
+#[test]
+fn record_rays_refuses_renders_without_batches() {
+    let dir = temp_dir("record-refused");
+    let scene = r#"<scene version="3.0.0">
+    <integrator type="path"/>
+    <sensor type="perspective">
+        <transform name="to_world"><lookat origin="0, 0, 4" target="0, 0, 0" up="0, 1, 0"/></transform>
+        <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
+    </sensor>
+    <shape type="sphere"><emitter type="area"><rgb name="radiance" value="1, 1, 1"/></emitter></shape>
+</scene>
+"#;
+    std::fs::write(dir.join("sphere.xml"), scene).unwrap();
+    let out = lightpath(
+        &[
+            "render",
+            "sphere.xml",
+            "-q",
+            "-o",
+            "out.exr",
+            "--record-rays",
+            "rec",
+        ],
+        &dir,
+    );
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("--record-rays") && stderr.contains("one triangle mesh"),
+        "{stderr}"
+    );
+    assert!(!dir.join("rec").exists() && !dir.join("out.exr").exists());
+}

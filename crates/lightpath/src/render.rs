@@ -127,6 +127,20 @@ pub struct RenderControl<'a> {
     pub single_pass: bool,
     /// Called from the worker threads as tiles finish.
     pub progress: Option<&'a (dyn Fn(&Progress) + Sync)>,
+    /// Called from the worker threads with each batch of rays the path tracer traces
+    /// together, where it does ([`Renderer::batches_rays`]): the rays of a renderer's
+    /// own workload, for timing a tracer on them (`lightpath render --record-rays`).
+    pub ray_batches: Option<&'a (dyn Fn(RayBatch<'_>) + Sync)>,
+}
+
+/// One batch of rays traced together by the path tracer (see
+/// [`RenderControl::ray_batches`]).
+#[derive(Debug, Clone, Copy)]
+pub struct RayBatch<'r> {
+    /// Shadow rays (occlusion queries within each ray's range) rather than closest-hit
+    /// queries.
+    pub shadow: bool,
+    pub rays: &'r [Ray],
 }
 
 /// A finished pass, handed to the `on_pass` callback of
@@ -264,7 +278,9 @@ impl Renderer<'_> {
             interval: None,
             single: true,
         };
-        let out = self.run(schedule, Some(&report), &mut |_| ControlFlow::Continue(()))?;
+        let out = self.run(schedule, Some(&report), None, &mut |_| {
+            ControlFlow::Continue(())
+        })?;
         Ok((out.image, out.stats))
     }
 
@@ -296,7 +312,7 @@ impl Renderer<'_> {
             interval: control.pass_interval,
             single: control.single_pass && control.time_budget.is_none(),
         };
-        self.run(schedule, control.progress, on_pass)
+        self.run(schedule, control.progress, control.ray_batches, on_pass)
     }
 
     /// The part of the camera's image to render: its top-left pixel and its size (the
@@ -327,6 +343,7 @@ impl Renderer<'_> {
         &self,
         schedule: Schedule,
         progress: Option<&(dyn Fn(&Progress) + Sync)>,
+        ray_batches: Option<&(dyn Fn(RayBatch<'_>) + Sync)>,
         on_pass: &mut dyn FnMut(&Pass) -> ControlFlow<()>,
     ) -> Result<Rendered> {
         let (origin, res) = self.window()?;
@@ -363,6 +380,7 @@ impl Renderer<'_> {
                 start,
                 base: stats,
                 progress,
+                ray_batches,
             };
             let Some(mut pass_stats) = self.render_pass(&job, &mut sums) else {
                 break; // abandoned at the deadline
@@ -467,6 +485,17 @@ impl Renderer<'_> {
     }
 
     /// The new sums of a tile's pixels; `None` once the pass is abandoned.
+    /// Whether the render traces its rays in batches that
+    /// [`RenderControl::ray_batches`] hears of: the path tracer, on a scene whose
+    /// geometry is one merged mesh ([`Scene::advances_paths_together`]), on a processor
+    /// with the AVX2 tier (within the `--simd` cap). Elsewhere rays are traced one by
+    /// one inside the integrator and no batch is reported.
+    pub fn batches_rays(&self) -> bool {
+        crate::cpu::has_avx2()
+            && self.integrator.path_tracer().is_some()
+            && self.scene.advances_paths_together()
+    }
+
     fn render_tile(
         &self,
         x0: u32,
@@ -706,6 +735,12 @@ impl Renderer<'_> {
             let mut ray_stats = RayStats::default();
             rays.clear();
             rays.extend(live.iter().map(|(_, _, path, _)| path.ray));
+            if let Some(record) = job.ray_batches {
+                record(RayBatch {
+                    shadow: false,
+                    rays: &rays,
+                });
+            }
             self.scene
                 .intersect_batch(&rays, &mut hits[..m], &mut ray_stats);
             // The round's shadow rays: the first `ns` of `shadows` and `shadow_rays`.
@@ -758,6 +793,12 @@ impl Renderer<'_> {
                         )
                     });
                 }
+            }
+            if let Some(record) = job.ray_batches {
+                record(RayBatch {
+                    shadow: true,
+                    rays: &shadow_rays[..ns],
+                });
             }
             self.scene
                 .occluded_batch(&shadow_rays[..ns], &mut occluded[..ns], &mut ray_stats);
@@ -949,6 +990,7 @@ struct PassJob<'a> {
     /// Statistics before this pass.
     base: RenderStats,
     progress: Option<&'a (dyn Fn(&Progress) + Sync)>,
+    ray_batches: Option<&'a (dyn Fn(RayBatch<'_>) + Sync)>,
 }
 
 impl PassJob<'_> {

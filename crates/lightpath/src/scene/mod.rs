@@ -13,6 +13,7 @@ use crate::geometry::{Shape, ShapeHit, SurfaceInteraction, TriangleMesh};
 use crate::light::{AreaLight, Emission, Light, LightSampler};
 use crate::material::Material;
 use crate::math::{Bounds3, Ray, Transform};
+use glam::Vec3;
 use std::sync::Arc;
 
 /// Sizes and build times of the acceleration structures ([`Scene::accel_report`]).
@@ -396,6 +397,16 @@ impl Scene {
     /// packets where [`Scene::traces_packets`] and ray by ray elsewhere.
     pub fn advances_paths_together(&self) -> bool {
         matches!((&self.merged[..], self.only_merged()), ([_], true))
+    }
+
+    /// The merged mesh's triangles, in render space, where all the geometry is one
+    /// merged mesh ([`Scene::advances_paths_together`]): its positions and its vertex
+    /// indices, in the order of the triangle ids of [`Scene::intersect_batch`]'s hits.
+    pub fn merged_triangles(&self) -> Option<(&[Vec3], &[[u32; 3]])> {
+        match (&self.merged[..], self.only_merged()) {
+            ([m], true) => Some((&m.mesh.positions, &m.mesh.indices)),
+            _ => None,
+        }
     }
 
     /// The closest hits of many rays (`hits[i]` for `rays[i]`), as
