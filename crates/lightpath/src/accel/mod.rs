@@ -27,7 +27,6 @@ pub use bsp::{Bsp, BspNode};
 pub use bvh::{Bvh, BvhNode, BvhStats};
 pub use bvh8::{Bvh8, Bvh8Node, STREAM_GROUP};
 #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
-pub(crate) use bvh8_packet::gather_ray_field;
 #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
 pub use bvh8_packet::{PacketLanes, PACKET};
 pub use grid::Grid;

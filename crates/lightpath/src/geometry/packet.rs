@@ -23,7 +23,6 @@
 
 use super::mesh::{intersect_triangle_watertight, WatertightRay};
 use super::triangle_block::{TriangleBlock, BLOCK};
-use crate::accel::gather_ray_field;
 use crate::accel::PacketLanes;
 use crate::math::{gamma, Bounds3, Ray};
 
@@ -87,16 +86,7 @@ impl<'a> RayPacket<'a> {
     pub unsafe fn new(rays: &'a [Ray], bounds: &Bounds3) -> (RayPacket<'a>, [f32; PACKET]) {
         use std::arch::x86_64::*;
         // SAFETY: the caller guarantees AVX-512F and DQ; `PacketLanes::new` checks the count.
-        let (boxes, dv) = unsafe { PacketLanes::new(rays) };
-        // SAFETY: the caller guarantees AVX-512F; the lanes of `active` are `rays`.
-        let t_max_lanes = unsafe {
-            gather_ray_field(
-                rays,
-                boxes.active,
-                std::mem::offset_of!(Ray, t_max),
-                f32::NEG_INFINITY,
-            )
-        };
+        let (boxes, dv, t_max_lanes) = unsafe { PacketLanes::with_t_max(rays) };
         let mut t_max = [f32::NEG_INFINITY; PACKET];
         // SAFETY: AVX-512F; a store to a 16-lane array.
         unsafe { std::arch::x86_64::_mm512_storeu_ps(t_max.as_mut_ptr(), t_max_lanes) };
