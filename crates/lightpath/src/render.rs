@@ -688,7 +688,7 @@ impl Renderer<'_> {
         let mut shadow_rays: Vec<Ray> = vec![Ray::new(Vec3::ZERO, Vec3::Z); w];
         let mut ended_at = vec![0u32; w];
         let mut occluded = vec![false; w];
-        let mut lanes = DiffuseLanes::new();
+        let mut lanes = DiffuseLanes::new(self.scene);
         // Every slot starts as a restart. (The restarts are written out here rather than
         // as a closure called from two places, which the compiler kept out of line and,
         // being a closure of a function without target features, compiled as baseline

@@ -96,15 +96,12 @@ pub(crate) struct DiffuseLanes {
     lit: M,
     reachable: M,
     pick: F,
-    corners: [F3; 3],
-    light_n: F3,
-    area_pdf: F,
-    radiance: F3,
-    /// Columns of the light's affine render-from-object matrix.
-    matrix: [F3; 4],
+    light: LightTriangles,
     u_triangle: [F; 2],
-    /// The picked triangle's cdf interval, where `u_triangle[0]` fell.
-    cdf: [F; 2],
+    /// With `table`: the picked triangle's slot there (`light` is then filled from the
+    /// table when the lanes run, not per vertex).
+    slot: [u32; LANES],
+    table: Option<Box<LightTable>>,
     // Results.
     shadow: M,
     shadow_origin: F3,
@@ -166,7 +163,19 @@ impl LaneResult {
 }
 
 impl DiffuseLanes {
-    pub(crate) fn new() -> Box<DiffuseLanes> {
+    /// Lanes for vertices of `scene`, with its lights' triangles tabulated where they
+    /// fit ([`LightTable`]).
+    pub(crate) fn new(scene: &Scene) -> Box<DiffuseLanes> {
+        Box::new(DiffuseLanes {
+            table: LightTable::new(scene).map(Box::new),
+            ..Default::default()
+        })
+    }
+
+    /// Lanes that take each vertex's light triangle field by field (as for scenes whose
+    /// lights have more triangles than the table holds).
+    #[cfg(test)]
+    fn untabulated() -> Box<DiffuseLanes> {
         Box::default()
     }
 
@@ -298,7 +307,7 @@ impl DiffuseLanes {
         tag: u32,
         path: &PathState,
         (albedo, one_sided): (Vec3, bool),
-        light: Option<(FlatTriangleSample<'_>, f32, bool)>,
+        light: Option<(FlatTriangleSample<'_>, f32, bool, usize)>,
         u: &VertexSamples,
         sampler: &mut Sampler,
     ) -> usize {
@@ -312,28 +321,31 @@ impl DiffuseLanes {
         self.u_dir[0][k] = u.u_dir.x;
         self.u_dir[1][k] = u.u_dir.y;
         self.lit.0[k] = light.is_some();
-        if let Some((t, pick, reachable)) = light {
+        if let Some((t, pick, reachable, light)) = light {
             self.pick[k] = pick;
             self.reachable.0[k] = reachable;
-            for (c, &corner) in self.corners.iter_mut().zip(t.p) {
-                set3(c, k, corner);
-            }
-            set3(&mut self.light_n, k, t.n);
-            self.area_pdf[k] = t.area_pdf;
-            set3(&mut self.radiance, k, t.radiance);
-            let m = t.render_from_object;
-            for (c, col) in self
-                .matrix
-                .iter_mut()
-                .zip([m.x_axis, m.y_axis, m.z_axis, m.w_axis])
-            {
-                set3(c, k, col.truncate());
-            }
             self.u_triangle[0][k] = t.u.x;
             self.u_triangle[1][k] = t.u.y;
-            self.cdf[0][k] = t.cdf.0;
-            self.cdf[1][k] = t.cdf.1;
+            if let Some(table) = &self.table {
+                // Every light the lanes run has its triangles in the table.
+                self.slot[k] = table.first[light] + t.prim as u32;
+                debug_assert!((self.slot[k] as usize) < LANES);
+                return self.fill_rest(pt, k, path, sampler);
+            }
+            self.light.set(k, &t);
         }
+        self.fill_rest(pt, k, path, sampler)
+    }
+
+    /// The end of [`DiffuseLanes::fill`] for lane `k`: Russian roulette's number.
+    #[inline(always)]
+    fn fill_rest(
+        &mut self,
+        pt: &PathTracer,
+        k: usize,
+        path: &PathState,
+        sampler: &mut Sampler,
+    ) -> usize {
         // `scatter` draws Russian roulette's number after the vertex's own, when the
         // path goes on past `rr_depth`; drawing it although the path then ends changes
         // nothing (the sampler starts the next sample afresh).
@@ -369,12 +381,76 @@ impl DiffuseLanes {
         self.run(scene)
     }
 
+    /// The light triangles' fields of every lane, from the table by their slots.
+    #[inline(always)]
+    fn take_table(&mut self) {
+        #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+        if crate::cpu::has_avx512() {
+            // SAFETY: the processor supports AVX-512 F, VL, DQ and BW (checked above).
+            return unsafe { self.take_table_avx512() };
+        }
+        #[cfg(target_arch = "x86_64")]
+        if crate::cpu::has_avx2() {
+            // SAFETY: the processor has the AVX2 tier (checked above).
+            return unsafe { self.take_table_avx2() };
+        }
+        self.take_table_with(|table, slot| {
+            let mut r = F::ZERO;
+            for i in 0..LANES {
+                r[i] = table[slot[i] as usize % LANES];
+            }
+            r
+        });
+    }
+
+    #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
+    unsafe fn take_table_avx512(&mut self) {
+        // SAFETY: the caller guarantees AVX-512.
+        self.take_table_with(|table, slot| unsafe { lookup_avx512(table, slot) });
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    unsafe fn take_table_avx2(&mut self) {
+        // SAFETY: the caller guarantees the AVX2 tier.
+        self.take_table_with(|table, slot| unsafe { lookup_avx2(table, slot) });
+    }
+
+    /// [`DiffuseLanes::take_table`] with `lookup(field, slots)` giving each lane's value.
+    #[inline(always)]
+    fn take_table_with(&mut self, lookup: impl Fn(F, &[u32; LANES]) -> F) {
+        let Some(table) = self.table.as_deref() else {
+            return;
+        };
+        let (slot, from, to) = (&self.slot, &table.triangles, &mut self.light);
+        for c in 0..3 {
+            for a in 0..3 {
+                to.corners[c][a] = lookup(from.corners[c][a], slot);
+            }
+        }
+        for c in 0..4 {
+            for a in 0..3 {
+                to.matrix[c][a] = lookup(from.matrix[c][a], slot);
+            }
+        }
+        for a in 0..3 {
+            to.light_n[a] = lookup(from.light_n[a], slot);
+            to.radiance[a] = lookup(from.radiance[a], slot);
+        }
+        to.area_pdf = lookup(from.area_pdf, slot);
+        to.cdf = [lookup(from.cdf[0], slot), lookup(from.cdf[1], slot)];
+    }
+
     /// [`PathTracer::scatter`] for all the vertices pushed, in lanes (see the module
     /// notes); lanes not pushed compute garbage that nobody reads.
     #[inline(always)]
     pub(crate) fn run(&mut self, scene: &Scene) {
         if self.from_hit.0[..self.len].contains(&true) {
             self.interactions(scene);
+        }
+        if self.table.is_some() {
+            self.take_table();
         }
         let (p, n, sn, tangent, wo) = (self.p, self.n, self.shading_n, self.dpdu, self.wo);
         let one_sided = self.one_sided;
@@ -402,7 +478,7 @@ impl DiffuseLanes {
         // Next-event estimation (`sample_flat_mesh` and `towards_area_point`).
         // `sample_reuse`: the offset in the triangle's cdf interval, clamped below 1.
         let [u0, uy] = self.u_triangle;
-        let [c0, c1] = self.cdf;
+        let [c0, c1] = self.light.cdf;
         let ux = c1.gt(c0).select((u0 - c0) / (c1 - c0), zero);
         let ux = ux.lt(zero).select(zero, ux);
         let below_one = F::splat(1.0 - f32::EPSILON / 2.0);
@@ -412,16 +488,16 @@ impl DiffuseLanes {
         let b1 = lower.select(hx, ux - hy);
         let b2 = lower.select(uy - hx, hy);
         let b0 = 1.0 - b1 - b2;
-        let [c0, c1, c2] = self.corners;
+        let [c0, c1, c2] = self.light.corners;
         let o = each!(c => c0[c] * b0 + c1[c] * b1 + c2[c] * b2);
-        let m = self.matrix;
+        let m = self.light.matrix;
         // `transform_point3`'s order: x, then y and z added onto it, then the translation.
         let q = each!(c => m[3][c] + (m[2][c] * o[2] + (m[1][c] * o[1] + m[0][c] * o[0])));
-        let light_n = self.light_n;
+        let light_n = self.light.light_n;
         let dq = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
         let dist2 = dot(dq, dq);
         let n_dot_d = dot(light_n, dq).abs();
-        let area_dist2 = self.area_pdf * dist2;
+        let area_dist2 = self.light.area_pdf * dist2;
         let inv_area_dist2 = 1.0 / area_dist2;
         let dist = dist2.sqrt();
         let inv_dist = 1.0 / dist;
@@ -435,7 +511,7 @@ impl DiffuseLanes {
         let cos_light = n_dot_d * inv_dist;
         let front = dot(light_n, [-wi[0], -wi[1], -wi[2]]).gt(zero);
         let scale = cos_light * inv_area_dist2;
-        let weight = each!(c => front.select(self.radiance[c], zero) * scale);
+        let weight = each!(c => front.select(self.light.radiance[c], zero) * scale);
         let wi_l = [dot(wi, s), dot(wi, t), dot(wi, sn)];
         // The diffuse BSDF's value and density, one-sided where the material is (the
         // tests as `Diffuse` and `OneSided` write them, which NaN fails alike).
@@ -672,14 +748,139 @@ fn lane_diffuse(material: &Material) -> Option<(Vec3, bool)> {
 fn lane_light<'s>(
     scene: &'s Scene,
     u: &VertexSamples,
-) -> Option<Option<(FlatTriangleSample<'s>, f32, bool)>> {
+) -> Option<Option<(FlatTriangleSample<'s>, f32, bool, usize)>> {
     let Some((index, pick)) = scene.light_sampler.sample(u.u_light) else {
         return Some(None);
     };
     match &scene.lights[index] {
-        Light::Area(a) => Some(Some((a.flat_constant_sample(u.u_point)?, pick, a.placed))),
+        Light::Area(a) => Some(Some((
+            a.flat_constant_sample(u.u_point)?,
+            pick,
+            a.placed,
+            index,
+        ))),
         _ => None,
     }
+}
+
+/// The triangles of a scene's lights that the lanes run (flat triangle meshes of
+/// constant radiance, [`AreaLight::flat_constant_sample`]) where there are at most
+/// [`LANES`] of them in all (a quad light has two): each of the fields
+/// [`DiffuseLanes::fill`] would store per vertex, as one vector with slot `s` in lane
+/// `s`. A vertex then stores only its triangle's slot, and [`DiffuseLanes::run`] takes
+/// the fields of sixteen vertices with one permute each (a gather is slow on some
+/// processors, Zen 4's among them), instead of thirty scalar stores per vertex.
+#[derive(Debug)]
+struct LightTable {
+    /// Per scene light: the slot of its first triangle (unused for other lights).
+    first: Vec<u32>,
+    triangles: LightTriangles,
+}
+
+/// Light triangles in lanes: what a light sample needs of its triangle
+/// ([`FlatTriangleSample`]) but the numbers that place the point.
+#[derive(Debug, Default)]
+struct LightTriangles {
+    corners: [F3; 3],
+    light_n: F3,
+    area_pdf: F,
+    radiance: F3,
+    /// Columns of the light's affine render-from-object matrix.
+    matrix: [F3; 4],
+    /// The triangle's cdf interval, where the number that picked it fell.
+    cdf: [F; 2],
+}
+
+impl LightTriangles {
+    /// Lane `k` holds triangle `t`.
+    #[inline(always)]
+    fn set(&mut self, k: usize, t: &FlatTriangleSample<'_>) {
+        for (c, &corner) in self.corners.iter_mut().zip(t.p) {
+            set3(c, k, corner);
+        }
+        set3(&mut self.light_n, k, t.n);
+        self.area_pdf[k] = t.area_pdf;
+        set3(&mut self.radiance, k, t.radiance);
+        let m = t.render_from_object;
+        for (c, col) in self
+            .matrix
+            .iter_mut()
+            .zip([m.x_axis, m.y_axis, m.z_axis, m.w_axis])
+        {
+            set3(c, k, col.truncate());
+        }
+        self.cdf[0][k] = t.cdf.0;
+        self.cdf[1][k] = t.cdf.1;
+    }
+}
+
+impl LightTable {
+    fn new(scene: &Scene) -> Option<LightTable> {
+        let mut table = LightTable {
+            first: vec![0; scene.lights.len()],
+            triangles: LightTriangles::default(),
+        };
+        let mut slot = 0;
+        for (i, light) in scene.lights.iter().enumerate() {
+            let Light::Area(a) = light else { continue };
+            let Some(triangles) = a.flat_constant_triangles() else {
+                continue;
+            };
+            if slot + triangles.len() > LANES {
+                return None;
+            }
+            table.first[i] = slot as u32;
+            for t in triangles {
+                table.triangles.set(slot, &t);
+                slot += 1;
+            }
+        }
+        (slot > 0).then_some(table)
+    }
+}
+
+/// Lane `i` of the result is `table`'s lane `slot[i]` (each below [`LANES`]), by one
+/// AVX-512 permute.
+// The AVX-512 intrinsics are newer than the MSRV; the build script enables this code
+// only with compilers that have them (`lightpath_avx512`).
+#[allow(clippy::incompatible_msrv)]
+#[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+#[inline(always)]
+unsafe fn lookup_avx512(table: F, slot: &[u32; LANES]) -> F {
+    use std::arch::x86_64::*;
+    let mut r = F::ZERO;
+    // SAFETY: AVX-512F (the caller); loads and a store of sixteen lanes.
+    unsafe {
+        let index = _mm512_loadu_si512(slot.as_ptr() as *const __m512i);
+        let v = _mm512_permutexvar_ps(index, _mm512_loadu_ps(table.0.as_ptr()));
+        _mm512_storeu_ps(r.0.as_mut_ptr(), v);
+    }
+    r
+}
+
+/// [`lookup_avx512`] with AVX2: each half of the lanes picks from both halves of the
+/// table and keeps the one its slot's bit 3 names.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn lookup_avx2(table: F, slot: &[u32; LANES]) -> F {
+    use std::arch::x86_64::*;
+    let mut r = F::ZERO;
+    // SAFETY: AVX2 (the caller); loads and stores of eight lanes inside the arrays.
+    unsafe {
+        let lo = _mm256_loadu_ps(table.0.as_ptr());
+        let hi = _mm256_loadu_ps(table.0.as_ptr().add(8));
+        for half in 0..2 {
+            let index = _mm256_loadu_si256(slot.as_ptr().add(8 * half) as *const __m256i);
+            let high = _mm256_castsi256_ps(_mm256_slli_epi32::<28>(index));
+            let v = _mm256_blendv_ps(
+                _mm256_permutevar8x32_ps(lo, index),
+                _mm256_permutevar8x32_ps(hi, index),
+                high,
+            );
+            _mm256_storeu_ps(r.0.as_mut_ptr().add(8 * half), v);
+        }
+    }
+    r
 }
 
 #[inline(always)]
@@ -734,6 +935,76 @@ mod tests {
     /// A Mitsuba scene of one-sided diffuse quads (one with the light behind it, one
     /// mirrored, one with vertex normals) lit by a flat emitting quad (and, when
     /// `point`, also a point light, which the lanes leave to `scatter`).
+    /// The lights' triangles are tabulated, each with its own fields, where they are at
+    /// most sixteen in all (over every light), and not beyond.
+    #[test]
+    fn light_table_holds_up_to_sixteen_triangles() {
+        let dir = std::env::temp_dir().join(format!("lightpath-table-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // A strip of `n` quads (2n triangles) of growing size, at height `y`.
+        let strip = |name: &str, n: usize, y: f32| {
+            let mut obj = String::new();
+            for i in 0..n {
+                let (x0, x1) = (i as f32, i as f32 + 0.5 + 0.1 * i as f32);
+                for (x, z) in [(x0, 0.0), (x1, 0.0), (x1, 1.0), (x0, 1.0)] {
+                    obj += &format!("v {x} {y} {z}\n");
+                }
+                let k = 4 * i + 1;
+                obj += &format!("f {} {} {}\nf {} {} {}\n", k, k + 1, k + 2, k, k + 2, k + 3);
+            }
+            let path = dir.join(name);
+            std::fs::write(&path, obj).unwrap();
+            path.display().to_string()
+        };
+        for (a, b) in [(3, 5), (4, 4), (4, 5), (9, 0)] {
+            let (first, second) = (strip("a.obj", a, 2.0), strip("b.obj", b.max(1), 3.0));
+            let emitter =
+                r#"<emitter type="area"><rgb name="radiance" value="1, 2, 3"/></emitter>"#;
+            let second = if b > 0 {
+                format!(r#"<shape type="obj" filename="{second}">{emitter}</shape>"#)
+            } else {
+                String::new()
+            };
+            let xml = format!(
+                r#"<scene version="3.0.0">
+                    <sensor type="perspective"/>
+                    <shape type="obj" filename="{first}">{emitter}</shape>
+                    {second}
+                    <emitter type="point"><point name="position" x="0" y="1" z="0"/></emitter>
+                </scene>"#
+            );
+            let l = load_scene_str(&xml, Path::new("table.xml"), &LoadOptions::default()).unwrap();
+            let scene = &l.scene;
+            let lanes = DiffuseLanes::new(scene);
+            let triangles = 2 * (a + b);
+            assert_eq!(lanes.table.is_some(), triangles <= LANES, "{a} + {b} quads");
+            let Some(table) = &lanes.table else { continue };
+            let mut slots = 0;
+            for (i, light) in scene.lights.iter().enumerate() {
+                let Light::Area(area) = light else { continue };
+                for t in area.flat_constant_triangles().unwrap() {
+                    let s = table.first[i] as usize + t.prim;
+                    assert_eq!(table.triangles.area_pdf[s], t.area_pdf);
+                    assert_eq!(
+                        (table.triangles.cdf[0][s], table.triangles.cdf[1][s]),
+                        t.cdf
+                    );
+                    for c in 0..3 {
+                        let corner = [0, 1, 2].map(|a| table.triangles.corners[c][a][s]);
+                        assert_eq!(corner, t.p[c].to_array());
+                    }
+                    assert_eq!(
+                        [0, 1, 2].map(|a| table.triangles.light_n[a][s]),
+                        t.n.to_array()
+                    );
+                    slots += 1;
+                }
+            }
+            assert_eq!(slots, triangles);
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
     fn scene(point: bool) -> crate::io::LoadedScene {
         // A folder per call: tests run in parallel, and each removes its folder.
         static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
@@ -908,7 +1179,8 @@ mod tests {
             clamp: None,
             hide_emitters: false,
         };
-        for point in [false, true] {
+        // Lanes with the light's triangles tabulated and without.
+        for (point, tabulated) in [(false, true), (true, true), (false, false), (true, false)] {
             let l = scene(point);
             let scene = &l.scene;
             let one_sided = scene.instances[0].material.clone().unwrap();
@@ -921,7 +1193,12 @@ mod tests {
                 ior: None,
             });
             let mut rng = Pcg32::new(7, point as u64);
-            let mut lanes = DiffuseLanes::new();
+            let mut lanes = if tabulated {
+                DiffuseLanes::new(scene)
+            } else {
+                DiffuseLanes::untabulated()
+            };
+            assert_eq!(lanes.table.is_some(), tabulated);
             let (mut taken, mut refused, mut shadows, mut ended) = (0, 0, 0, 0);
             let mut pending: Vec<Pending> = Vec::new();
             let check = |lanes: &mut DiffuseLanes, pending: &mut Vec<Pending>| {
@@ -998,11 +1275,17 @@ mod tests {
             clamp: None,
             hide_emitters: false,
         };
-        for point in [false, true] {
+        // Lanes with the light's triangles tabulated and without.
+        for (point, tabulated) in [(false, true), (true, true), (false, false), (true, false)] {
             let l = scene(point);
             let scene = &l.scene;
             let mut rng = Pcg32::new(8, point as u64);
-            let mut lanes = DiffuseLanes::new();
+            let mut lanes = if tabulated {
+                DiffuseLanes::new(scene)
+            } else {
+                DiffuseLanes::untabulated()
+            };
+            assert_eq!(lanes.table.is_some(), tabulated);
             let (mut taken, mut direct) = (0, 0);
             let mut pending: Vec<Pending> = Vec::new();
             let check = |lanes: &mut DiffuseLanes, pending: &mut Vec<Pending>| {

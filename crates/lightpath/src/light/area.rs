@@ -192,6 +192,8 @@ pub(crate) struct FlatTriangleSample<'a> {
     pub render_from_object: &'a Mat4,
     pub u: Vec2,
     pub cdf: (f32, f32),
+    /// The triangle's index in the light's mesh.
+    pub prim: usize,
 }
 
 /// The emitting surface of one instance. A mesh cut by an alpha mask emits only where
@@ -353,7 +355,30 @@ impl AreaLight {
             render_from_object: self.render_from_object.matrix(),
             u,
             cdf: (c0, c1),
+            prim,
         })
+    }
+
+    /// Every triangle that [`AreaLight::flat_constant_sample`] can give, in index order
+    /// (each with `u` zero), where it gives any: for code that tabulates them.
+    pub(crate) fn flat_constant_triangles(&self) -> Option<Vec<FlatTriangleSample<'_>>> {
+        let mesh = self.flat_mesh.as_ref()?;
+        let radiance = mesh.constant_radiance.as_ref()?;
+        let triangles = mesh.triangles.iter().enumerate();
+        Some(
+            triangles
+                .map(|(prim, tri)| FlatTriangleSample {
+                    p: &tri.p,
+                    n: tri.n,
+                    area_pdf: tri.area_pdf,
+                    radiance: *radiance,
+                    render_from_object: self.render_from_object.matrix(),
+                    u: Vec2::ZERO,
+                    cdf: mesh.distribution.cell_bounds(prim),
+                    prim,
+                })
+                .collect(),
+        )
     }
 
     /// Samples light arriving at `p` for any shape: by solid angle for spheres, else by

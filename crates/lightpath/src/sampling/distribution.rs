@@ -101,6 +101,12 @@ impl Distribution1D {
         (cell, self.cdf[cell], self.cdf[cell + 1])
     }
 
+    /// Cell `cell`'s cdf interval, as [`Distribution1D::cell_interval`] gives it.
+    #[inline]
+    pub(crate) fn cell_bounds(&self, cell: usize) -> (f32, f32) {
+        (self.cdf[cell], self.cdf[cell + 1])
+    }
+
     /// Samples a continuous position in [0, 1); returns (x, density, cell).
     #[inline]
     pub fn sample_continuous(&self, u: f32) -> (f32, f32, usize) {
