@@ -113,6 +113,15 @@ impl RayRecorder {
         }
     }
 
+    /// Removes the unfinished ray files (a render that failed).
+    pub fn discard(self) {
+        let files = self.files.into_inner().unwrap_or_else(|e| e.into_inner());
+        for file in [files.paths, files.shadow] {
+            drop(file.out);
+            let _ = std::fs::remove_file(&file.temp);
+        }
+    }
+
     /// Flushes the files and renames them into place; on error removes them.
     pub fn finish(self) -> Result<Recorded> {
         let files = self.files.into_inner().unwrap_or_else(|e| e.into_inner());

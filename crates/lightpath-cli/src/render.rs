@@ -184,14 +184,22 @@ pub fn run(args: RenderArgs) -> Result<()> {
         Some(dir) => Some(start_recording(&loaded, &args.options, dir)?),
         None => None,
     };
-    let rendered = render_loaded(
+    let rendered = match render_loaded(
         &loaded,
         &args.options,
         args.time,
         interval,
         recorder.as_ref(),
         &mut live,
-    )?;
+    ) {
+        Ok(rendered) => rendered,
+        Err(e) => {
+            if let Some(recorder) = recorder {
+                recorder.discard();
+            }
+            return Err(e);
+        }
+    };
     if let (Some(recorder), Some(dir)) = (recorder, &args.record_rays) {
         let recorded = recorder.finish()?;
         if !quiet {

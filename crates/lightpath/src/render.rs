@@ -484,7 +484,6 @@ impl Renderer<'_> {
         }
     }
 
-    /// The new sums of a tile's pixels; `None` once the pass is abandoned.
     /// Whether the render traces its rays in batches that
     /// [`RenderControl::ray_batches`] hears of: the path tracer, on a scene whose
     /// geometry is one merged mesh ([`Scene::advances_paths_together`]), on a processor
@@ -496,6 +495,7 @@ impl Renderer<'_> {
             && self.scene.advances_paths_together()
     }
 
+    /// The new sums of a tile's pixels; `None` once the pass is abandoned.
     fn render_tile(
         &self,
         x0: u32,

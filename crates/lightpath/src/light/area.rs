@@ -361,24 +361,22 @@ impl AreaLight {
 
     /// Every triangle that [`AreaLight::flat_constant_sample`] can give, in index order
     /// (each with `u` zero), where it gives any: for code that tabulates them.
-    pub(crate) fn flat_constant_triangles(&self) -> Option<Vec<FlatTriangleSample<'_>>> {
+    pub(crate) fn flat_constant_triangles(
+        &self,
+    ) -> Option<impl ExactSizeIterator<Item = FlatTriangleSample<'_>>> {
         let mesh = self.flat_mesh.as_ref()?;
-        let radiance = mesh.constant_radiance.as_ref()?;
+        let radiance = *mesh.constant_radiance.as_ref()?;
         let triangles = mesh.triangles.iter().enumerate();
-        Some(
-            triangles
-                .map(|(prim, tri)| FlatTriangleSample {
-                    p: &tri.p,
-                    n: tri.n,
-                    area_pdf: tri.area_pdf,
-                    radiance: *radiance,
-                    render_from_object: self.render_from_object.matrix(),
-                    u: Vec2::ZERO,
-                    cdf: mesh.distribution.cell_bounds(prim),
-                    prim,
-                })
-                .collect(),
-        )
+        Some(triangles.map(move |(prim, tri)| FlatTriangleSample {
+            p: &tri.p,
+            n: tri.n,
+            area_pdf: tri.area_pdf,
+            radiance,
+            render_from_object: self.render_from_object.matrix(),
+            u: Vec2::ZERO,
+            cdf: mesh.distribution.cell_bounds(prim),
+            prim,
+        }))
     }
 
     /// Samples light arriving at `p` for any shape: by solid angle for spheres, else by
