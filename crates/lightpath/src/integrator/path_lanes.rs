@@ -326,26 +326,13 @@ impl DiffuseLanes {
             self.reachable.0[k] = reachable;
             self.u_triangle[0][k] = t.u.x;
             self.u_triangle[1][k] = t.u.y;
-            if let Some(table) = &self.table {
+            match &self.table {
                 // Every light the lanes run has its triangles in the table.
-                self.slot[k] = table.first[light] + t.prim as u32;
-                debug_assert!((self.slot[k] as usize) < LANES);
-                return self.fill_rest(pt, k, path, sampler);
+                Some(table) => self.slot[k] = table.first[light] + t.prim as u32,
+                None => self.light.set(k, &t),
             }
-            self.light.set(k, &t);
+            debug_assert!((self.slot[k] as usize) < LANES);
         }
-        self.fill_rest(pt, k, path, sampler)
-    }
-
-    /// The end of [`DiffuseLanes::fill`] for lane `k`: Russian roulette's number.
-    #[inline(always)]
-    fn fill_rest(
-        &mut self,
-        pt: &PathTracer,
-        k: usize,
-        path: &PathState,
-        sampler: &mut Sampler,
-    ) -> usize {
         // `scatter` draws Russian roulette's number after the vertex's own, when the
         // path goes on past `rr_depth`; drawing it although the path then ends changes
         // nothing (the sampler starts the next sample afresh).
