@@ -97,11 +97,16 @@ pub(crate) struct DiffuseLanes {
     reachable: M,
     pick: F,
     light: LightTriangles,
+    /// The numbers that pick the light (where the lanes pick it, [`LightPicks`]) and
+    /// that pick the triangle and place the point on it.
+    u_light: F,
     u_triangle: [F; 2],
     /// With `table`: the picked triangle's slot there (`light` is then filled from the
     /// table when the lanes run, not per vertex).
     slot: [u32; LANES],
     table: Option<Box<LightTable>>,
+    /// Whether the table picks the lights ([`LightPicks`]).
+    picks: bool,
     // Results.
     shadow: M,
     shadow_origin: F3,
@@ -166,10 +171,22 @@ impl DiffuseLanes {
     /// Lanes for vertices of `scene`, with its lights' triangles tabulated where they
     /// fit ([`LightTable`]).
     pub(crate) fn new(scene: &Scene) -> Box<DiffuseLanes> {
+        let table = LightTable::new(scene);
         Box::new(DiffuseLanes {
-            table: LightTable::new(scene).map(Box::new),
+            picks: table.as_ref().is_some_and(|t| t.picks.is_some()),
+            table: table.map(Box::new),
             ..Default::default()
         })
+    }
+
+    /// The light sample of a vertex with numbers `u` as the lanes take it (see
+    /// [`lane_light`]; the lanes pick it themselves where the table can).
+    #[inline(always)]
+    fn light<'s>(&self, scene: &'s Scene, u: &VertexSamples) -> Option<LaneLight<'s>> {
+        if self.picks {
+            return Some(LaneLight::Picked);
+        }
+        lane_light(scene, u)
     }
 
     /// Lanes that take each vertex's light triangle field by field (as for scenes whose
@@ -223,7 +240,7 @@ impl DiffuseLanes {
                     (mesh.lane_triangle(prim), lane_diffuse(material))
                 {
                     let u = VertexSamples::draw(sampler);
-                    let Some(light) = lane_light(scene, &u) else {
+                    let Some(light) = self.light(scene, &u) else {
                         let si = scene.batch_interaction(&path.ray, hit);
                         return Some(pt.scatter(scene, path, &si, material, &u, sampler, shadow));
                     };
@@ -276,7 +293,7 @@ impl DiffuseLanes {
         u: &VertexSamples,
         sampler: &mut Sampler,
     ) -> bool {
-        let (Some(diffuse), Some(light)) = (lane_diffuse(material), lane_light(scene, u)) else {
+        let (Some(diffuse), Some(light)) = (lane_diffuse(material), self.light(scene, u)) else {
             return false;
         };
         let k = self.fill(pt, tag, path, diffuse, light, u, sampler);
@@ -307,7 +324,7 @@ impl DiffuseLanes {
         tag: u32,
         path: &PathState,
         (albedo, one_sided): (Vec3, bool),
-        light: Option<(FlatTriangleSample<'_>, f32, bool, usize)>,
+        light: LaneLight<'_>,
         u: &VertexSamples,
         sampler: &mut Sampler,
     ) -> usize {
@@ -320,18 +337,23 @@ impl DiffuseLanes {
         set3(&mut self.beta, k, path.beta.into());
         self.u_dir[0][k] = u.u_dir.x;
         self.u_dir[1][k] = u.u_dir.y;
-        self.lit.0[k] = light.is_some();
-        if let Some((t, pick, reachable, light)) = light {
-            self.pick[k] = pick;
-            self.reachable.0[k] = reachable;
-            self.u_triangle[0][k] = t.u.x;
-            self.u_triangle[1][k] = t.u.y;
-            match &self.table {
-                // Every light the lanes run has its triangles in the table.
-                Some(table) => self.slot[k] = table.first[light] + t.prim as u32,
-                None => self.light.set(k, &t),
+        self.lit.0[k] = !matches!(light, LaneLight::None);
+        self.u_triangle[0][k] = u.u_point.x;
+        self.u_triangle[1][k] = u.u_point.y;
+        match light {
+            LaneLight::None => {}
+            LaneLight::Triangle(t, pick, reachable, light) => {
+                self.pick[k] = pick;
+                self.reachable.0[k] = reachable;
+                match &self.table {
+                    // Every light the lanes run has its triangles in the table.
+                    Some(table) => self.slot[k] = table.first[light] + t.prim as u32,
+                    None => self.light.set(k, &t),
+                }
+                debug_assert!((self.slot[k] as usize) < LANES);
             }
-            debug_assert!((self.slot[k] as usize) < LANES);
+            // The pick, reachability and slot come from the table when the lanes run.
+            LaneLight::Picked => self.u_light[k] = u.u_light,
         }
         // `scatter` draws Russian roulette's number after the vertex's own, when the
         // path goes on past `rr_depth`; drawing it although the path then ends changes
@@ -381,35 +403,58 @@ impl DiffuseLanes {
             // SAFETY: the processor has the AVX2 tier (checked above).
             return unsafe { self.take_table_avx2() };
         }
-        self.take_table_with(|table, slot| {
-            let mut r = F::ZERO;
-            for i in 0..LANES {
-                r[i] = table[slot[i] as usize % LANES];
-            }
-            r
-        });
+        self.take_table_with(
+            |table, slot| {
+                let mut r = F::ZERO;
+                for i in 0..LANES {
+                    r[i] = table[slot[i] as usize % LANES];
+                }
+                r
+            },
+            index,
+        );
     }
 
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
     unsafe fn take_table_avx512(&mut self) {
         // SAFETY: the caller guarantees AVX-512.
-        self.take_table_with(|table, slot| unsafe { lookup_avx512(table, slot) });
+        self.take_table_with(
+            |table, slot| unsafe { lookup_avx512(table, slot) },
+            |v| unsafe { index_avx512(v) },
+        );
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     unsafe fn take_table_avx2(&mut self) {
         // SAFETY: the caller guarantees the AVX2 tier.
-        self.take_table_with(|table, slot| unsafe { lookup_avx2(table, slot) });
+        self.take_table_with(
+            |table, slot| unsafe { lookup_avx2(table, slot) },
+            |v| unsafe { index_avx2(v) },
+        );
     }
 
     /// [`DiffuseLanes::take_table`] with `lookup(field, slots)` giving each lane's value.
     #[inline(always)]
-    fn take_table_with(&mut self, lookup: impl Fn(F, &[u32; LANES]) -> F) {
+    fn take_table_with(
+        &mut self,
+        lookup: impl Fn(F, &[u32; LANES]) -> F,
+        index: impl Fn(F) -> [u32; LANES],
+    ) {
         let Some(table) = self.table.as_deref() else {
             return;
         };
+        if let Some(picks) = &table.picks {
+            let (slot, pick, reachable) = picks.pick(
+                &table.triangles,
+                self.u_light,
+                self.u_triangle[0],
+                &lookup,
+                &index,
+            );
+            (self.slot, self.pick, self.reachable) = (slot, pick, reachable);
+        }
         let (slot, from, to) = (&self.slot, &table.triangles, &mut self.light);
         for c in 0..3 {
             for a in 0..3 {
@@ -728,24 +773,32 @@ fn lane_diffuse(material: &Material) -> Option<(Vec3, bool)> {
     }
 }
 
-/// The light sample of a vertex with numbers `u` as the lanes take it: `Some(None)`
-/// where no light is picked, `Some(Some((triangle, pick probability, reachable by
-/// rays)))` for a flat constant mesh emitter, `None` for lights the lanes do not run.
+/// A vertex's light sample as the lanes take it.
+enum LaneLight<'s> {
+    /// No light is picked.
+    None,
+    /// A triangle of a flat constant mesh emitter: its sample, the light's pick
+    /// probability, whether rays reach the light, and the light's index.
+    Triangle(FlatTriangleSample<'s>, f32, bool, usize),
+    /// The lanes pick the light and its triangle from the vertex's numbers when they
+    /// run ([`LightPicks`]).
+    Picked,
+}
+
+/// The light sample of a vertex with numbers `u` as the lanes take it, picked one by
+/// one; `None` for lights the lanes do not run.
 #[inline(always)]
-fn lane_light<'s>(
-    scene: &'s Scene,
-    u: &VertexSamples,
-) -> Option<Option<(FlatTriangleSample<'s>, f32, bool, usize)>> {
+fn lane_light<'s>(scene: &'s Scene, u: &VertexSamples) -> Option<LaneLight<'s>> {
     let Some((index, pick)) = scene.light_sampler.sample(u.u_light) else {
-        return Some(None);
+        return Some(LaneLight::None);
     };
     match &scene.lights[index] {
-        Light::Area(a) => Some(Some((
+        Light::Area(a) => Some(LaneLight::Triangle(
             a.flat_constant_sample(u.u_point)?,
             pick,
             a.placed,
             index,
-        ))),
+        )),
         _ => None,
     }
 }
@@ -762,6 +815,112 @@ struct LightTable {
     /// Per scene light: the slot of its first triangle (unused for other lights).
     first: Vec<u32>,
     triangles: LightTriangles,
+    /// Where every light of the scene is in the table: what picking one takes.
+    picks: Option<LightPicks>,
+}
+
+/// Where all of a scene's lights are in the [`LightTable`] (and the light sampler picks
+/// among them), the lanes pick each vertex's light and its triangle themselves, sixteen
+/// at a time, from the numbers [`lane_light`] would pick them with and with the same
+/// outcome: [`LightSampler::sample`](crate::light::LightSampler::sample) and
+/// [`AreaLight::flat_constant_sample`](crate::light::AreaLight)'s cell of the light's
+/// triangle distribution, each counted as the cdf values at or below the number, one
+/// compare per value. A vertex then stores two numbers in place of its light's pick
+/// (two searches of a distribution, whose branches mispredict where a number decides).
+#[derive(Debug)]
+struct LightPicks {
+    /// The light sampler's cdf past its first value (0): `cdf[1..=n]` for `n` lights.
+    cdf: Vec<f32>,
+    /// Lane `i` for light `i`: its pick probability, the slot of its first triangle,
+    /// its triangle count, and 1 where rays reach it (else 0).
+    probability: F,
+    first: F,
+    count: F,
+    reachable: F,
+    /// The slots in use (triangles over all the lights).
+    slots: usize,
+}
+
+impl LightPicks {
+    /// Each lane's triangle slot, pick probability and reachability, for light numbers
+    /// `u_light` and triangle numbers `u_triangle` (`lookup(field, index)`: each lane's
+    /// value of `field` at its index, as [`DiffuseLanes::take_table_with`] takes it;
+    /// `index`: lanes of small whole numbers as indices, as [`index`]).
+    #[inline(always)]
+    fn pick(
+        &self,
+        triangles: &LightTriangles,
+        u_light: F,
+        u_triangle: F,
+        lookup: &impl Fn(F, &[u32; LANES]) -> F,
+        index: &impl Fn(F) -> [u32; LANES],
+    ) -> ([u32; LANES], F, M) {
+        let (zero, one) = (F::ZERO, F::splat(1.0));
+        // `Distribution1D::sample_discrete` counts the cdf values at or below `u`
+        // (cdf[0] = 0 among them where u >= 0) and takes one less, at most n - 1: the
+        // count of the values past the first, at most n - 1 (0 where u < 0 or NaN).
+        let mut light = zero;
+        for &c in &self.cdf {
+            light = light + F::splat(c).le(u_light).select(one, zero);
+        }
+        let light = index(light.min(F::splat((self.cdf.len() - 1) as f32)));
+        let pick = lookup(self.probability, &light);
+        let first = lookup(self.first, &light);
+        let count = lookup(self.count, &light);
+        let reachable = lookup(self.reachable, &light).gt(zero);
+        // The light's triangle: its cdf is the slots' lower bounds and its last slot's
+        // upper bound; the cell is the count at or below `u` less one, in 0..count.
+        let end = first + count;
+        let mut at = zero;
+        for s in 0..self.slots {
+            let slot = F::splat(s as f32);
+            let counted =
+                slot.ge(first) & slot.lt(end) & F::splat(triangles.cdf[0][s]).le(u_triangle);
+            at = at + counted.select(one, zero);
+        }
+        let last = lookup(triangles.cdf[1], &index(end - 1.0));
+        at = at + last.le(u_triangle).select(one, zero);
+        let cell = (at - 1.0).max(zero).min(count - 1.0);
+        (index(first + cell), pick, reachable)
+    }
+}
+
+/// The lanes' small whole numbers (held exactly as floats) as indices.
+#[inline(always)]
+fn index(v: F) -> [u32; LANES] {
+    v.0.map(|v| v as u32)
+}
+
+/// [`index`] in one AVX-512 conversion (the compiler converts lane by lane, for the
+/// saturation that `as` promises and that numbers this small never need).
+#[allow(clippy::incompatible_msrv)]
+#[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+#[inline(always)]
+unsafe fn index_avx512(v: F) -> [u32; LANES] {
+    use std::arch::x86_64::*;
+    let mut r = [0u32; LANES];
+    // SAFETY: AVX-512F (the caller); a load and a store of sixteen lanes.
+    unsafe {
+        let i = _mm512_cvttps_epi32(_mm512_loadu_ps(v.0.as_ptr()));
+        _mm512_storeu_si512(r.as_mut_ptr() as *mut __m512i, i);
+    }
+    r
+}
+
+/// [`index_avx512`] in two AVX2 conversions.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn index_avx2(v: F) -> [u32; LANES] {
+    use std::arch::x86_64::*;
+    let mut r = [0u32; LANES];
+    // SAFETY: AVX2 (the caller); loads and stores of eight lanes inside the arrays.
+    unsafe {
+        for half in 0..2 {
+            let i = _mm256_cvttps_epi32(_mm256_loadu_ps(v.0.as_ptr().add(8 * half)));
+            _mm256_storeu_si256(r.as_mut_ptr().add(8 * half) as *mut __m256i, i);
+        }
+    }
+    r
 }
 
 /// Light triangles in lanes: what a light sample needs of its triangle
@@ -806,21 +965,52 @@ impl LightTable {
         let mut table = LightTable {
             first: vec![0; scene.lights.len()],
             triangles: LightTriangles::default(),
+            picks: None,
         };
+        // Whether every light is tabulated, with at least one triangle.
+        let mut all = true;
+        let (mut first, mut count, mut reachable) = (F::ZERO, F::ZERO, F::ZERO);
         let mut slot = 0;
         for (i, light) in scene.lights.iter().enumerate() {
-            let Light::Area(a) = light else { continue };
-            let Some(triangles) = a.flat_constant_triangles() else {
+            let triangles = match light {
+                Light::Area(a) => a.flat_constant_triangles().map(|t| (t, a.placed)),
+                _ => None,
+            };
+            let Some((triangles, placed)) = triangles else {
+                all = false;
                 continue;
             };
             if slot + triangles.len() > LANES {
                 return None;
             }
             table.first[i] = slot as u32;
+            // (At most LANES lights get here, each with a triangle, or the table is
+            // given up above.)
+            if i < LANES {
+                first[i] = slot as f32;
+                count[i] = triangles.len() as f32;
+                reachable[i] = if placed { 1.0 } else { 0.0 };
+            }
+            all &= triangles.len() > 0;
             for t in triangles {
                 table.triangles.set(slot, &t);
                 slot += 1;
             }
+        }
+        let n = scene.lights.len();
+        if let (true, Some(cdf)) = (all && n <= LANES, scene.light_sampler.distribution()) {
+            let mut probability = F::ZERO;
+            for i in 0..n {
+                probability[i] = scene.light_sampler.probability(i);
+            }
+            table.picks = Some(LightPicks {
+                cdf: (0..n).map(|i| cdf.cell_bounds(i).1).collect(),
+                probability,
+                first,
+                count,
+                reachable,
+                slots: slot,
+            });
         }
         (slot > 0).then_some(table)
     }
@@ -922,27 +1112,29 @@ mod tests {
     /// A Mitsuba scene of one-sided diffuse quads (one with the light behind it, one
     /// mirrored, one with vertex normals) lit by a flat emitting quad (and, when
     /// `point`, also a point light, which the lanes leave to `scatter`).
+    /// Writes an OBJ file at `path` of a strip of `n` quads (2n triangles) of growing
+    /// size, at height `y`; returns its path.
+    fn strip(path: &Path, n: usize, y: f32) -> String {
+        let mut obj = String::new();
+        for i in 0..n {
+            let (x0, x1) = (i as f32, i as f32 + 0.5 + 0.1 * i as f32);
+            for (x, z) in [(x0, 0.0), (x1, 0.0), (x1, 1.0), (x0, 1.0)] {
+                obj += &format!("v {x} {y} {z}\n");
+            }
+            let k = 4 * i + 1;
+            obj += &format!("f {} {} {}\nf {} {} {}\n", k, k + 1, k + 2, k, k + 2, k + 3);
+        }
+        std::fs::write(path, obj).unwrap();
+        path.display().to_string()
+    }
+
     /// The lights' triangles are tabulated, each with its own fields, where they are at
     /// most sixteen in all (over every light), and not beyond.
     #[test]
     fn light_table_holds_up_to_sixteen_triangles() {
         let dir = std::env::temp_dir().join(format!("lightpath-table-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        // A strip of `n` quads (2n triangles) of growing size, at height `y`.
-        let strip = |name: &str, n: usize, y: f32| {
-            let mut obj = String::new();
-            for i in 0..n {
-                let (x0, x1) = (i as f32, i as f32 + 0.5 + 0.1 * i as f32);
-                for (x, z) in [(x0, 0.0), (x1, 0.0), (x1, 1.0), (x0, 1.0)] {
-                    obj += &format!("v {x} {y} {z}\n");
-                }
-                let k = 4 * i + 1;
-                obj += &format!("f {} {} {}\nf {} {} {}\n", k, k + 1, k + 2, k, k + 2, k + 3);
-            }
-            let path = dir.join(name);
-            std::fs::write(&path, obj).unwrap();
-            path.display().to_string()
-        };
+        let strip = |name: &str, n: usize, y: f32| strip(&dir.join(name), n, y);
         for (a, b) in [(3, 5), (4, 4), (4, 5), (9, 0)] {
             let (first, second) = (strip("a.obj", a, 2.0), strip("b.obj", b.max(1), 3.0));
             let emitter =
@@ -988,6 +1180,119 @@ mod tests {
                 }
             }
             assert_eq!(slots, triangles);
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// Where every light of a scene is tabulated, the lanes pick each vertex's light and
+    /// its triangle themselves ([`LightPicks`]), exactly as [`lane_light`] picks them
+    /// one by one: over lights of different powers and triangle counts, at random
+    /// numbers and at the cdfs' own values and their neighbours. A point light among the
+    /// lights, or lights of more triangles than the table holds, keep the pick one by one.
+    #[test]
+    fn lanes_pick_lights_as_one_by_one() {
+        let dir = std::env::temp_dir().join(format!("lightpath-picks-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let strip = |name: &str, n: usize, y: f32| strip(&dir.join(name), n, y);
+        let lookup = |table: F, slot: &[u32; LANES]| {
+            let mut r = F::ZERO;
+            for i in 0..LANES {
+                r[i] = table[slot[i] as usize % LANES];
+            }
+            r
+        };
+        let mut rng = Pcg32::new(5, 7);
+        let cases: [(&[usize], bool); 6] = [
+            (&[1], false),
+            (&[3, 1, 2], false),
+            (&[1; 8], false),
+            (&[2, 1, 4, 1], false),
+            (&[2, 2], true),
+            (&[5, 4], false),
+        ];
+        for (sizes, point) in cases {
+            let mut shapes = String::new();
+            for (k, &n) in sizes.iter().enumerate() {
+                let file = strip(&format!("light{k}.obj"), n, 2.0 + k as f32);
+                shapes += &format!(
+                    r#"<shape type="obj" filename="{file}"><emitter type="area">
+                        <rgb name="radiance" value="{}, 1, 2"/></emitter></shape>"#,
+                    1.0 + 0.7 * k as f32
+                );
+            }
+            let point = if point {
+                r#"<emitter type="point"><point name="position" x="0" y="1" z="0"/></emitter>"#
+            } else {
+                ""
+            };
+            let xml = format!(
+                r#"<scene version="3.0.0"><sensor type="perspective"/>{shapes}{point}</scene>"#
+            );
+            let l = load_scene_str(&xml, Path::new("picks.xml"), &LoadOptions::default()).unwrap();
+            let scene = &l.scene;
+            let lanes = DiffuseLanes::new(scene);
+            let triangles: usize = 2 * sizes.iter().sum::<usize>();
+            let fits = triangles <= LANES;
+            assert_eq!(lanes.picks, fits && point.is_empty(), "{sizes:?}");
+            if !lanes.picks {
+                continue;
+            }
+            let table = lanes.table.as_deref().unwrap();
+            let picks = table.picks.as_ref().unwrap();
+            assert_eq!(picks.cdf.len(), sizes.len());
+            // Random numbers, and the cdfs' values with their neighbours on each side.
+            let mut us: Vec<Vec2> = (0..4000)
+                .map(|_| Vec2::new(rng.next_f32(), rng.next_f32()))
+                .collect();
+            let cdfs = picks
+                .cdf
+                .iter()
+                .chain(&table.triangles.cdf[0].0[..triangles]);
+            for &c in cdfs {
+                let around = [
+                    c,
+                    f32::from_bits(c.to_bits() + 1),
+                    f32::from_bits(c.to_bits().max(1) - 1),
+                ];
+                for v in around.into_iter().filter(|v| (0.0..1.0).contains(v)) {
+                    us.extend([
+                        Vec2::new(v, rng.next_f32()),
+                        Vec2::new(rng.next_f32(), v),
+                        Vec2::splat(v),
+                    ]);
+                }
+            }
+            let mut seen = vec![false; triangles];
+            for chunk in us.chunks(LANES) {
+                let (mut u_light, mut u_triangle) = (F::ZERO, F::ZERO);
+                for (i, u) in chunk.iter().enumerate() {
+                    (u_light[i], u_triangle[i]) = (u.x, u.y);
+                }
+                let (slot, pick, reachable) =
+                    picks.pick(&table.triangles, u_light, u_triangle, &lookup, &index);
+                for (i, u) in chunk.iter().enumerate() {
+                    let vertex = VertexSamples {
+                        u_light: u.x,
+                        u_prim: 0.5,
+                        u_point: Vec2::new(u.y, 0.5),
+                        u_lobe: 0.5,
+                        u_dir: Vec2::splat(0.5),
+                    };
+                    let Some(LaneLight::Triangle(t, p, r, light)) = lane_light(scene, &vertex)
+                    else {
+                        panic!("no triangle picked at {u}");
+                    };
+                    let want = table.first[light] + t.prim as u32;
+                    assert_eq!(slot[i], want, "{sizes:?} at {u}");
+                    assert_eq!(pick[i].to_bits(), p.to_bits());
+                    assert_eq!(reachable.0[i], r);
+                    seen[want as usize] = true;
+                }
+            }
+            assert!(
+                seen.iter().all(|&s| s),
+                "{sizes:?}: every triangle is picked"
+            );
         }
         let _ = std::fs::remove_dir_all(&dir);
     }
@@ -1273,6 +1578,8 @@ mod tests {
                 DiffuseLanes::untabulated()
             };
             assert_eq!(lanes.table.is_some(), tabulated);
+            // The lanes pick the light themselves where it is the only one.
+            assert_eq!(lanes.picks, tabulated && !point);
             let (mut taken, mut direct) = (0, 0);
             let mut pending: Vec<Pending> = Vec::new();
             let check = |lanes: &mut DiffuseLanes, pending: &mut Vec<Pending>| {

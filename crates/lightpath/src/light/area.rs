@@ -175,10 +175,10 @@ fn towards_area_point(
     })
 }
 
-/// One triangle of a flat, constant emitter as [`AreaLight::sample`] picks it, and the
-/// numbers that place the point on it: the point is `render_from_object` applied to the
-/// corners `p` weighted by [`crate::sampling::warp::square_to_uniform_triangle`] of
-/// (`u.x`'s offset in the triangle's cdf interval `cdf`, clamped below 1, and `u.y`), as
+/// One triangle of a flat, constant emitter as [`AreaLight::sample`] picks it with
+/// numbers `u`: the point is `render_from_object` applied to the corners `p` weighted by
+/// [`crate::sampling::warp::square_to_uniform_triangle`] of (`u.x`'s offset in the
+/// triangle's cdf interval `cdf`, clamped below 1, and `u.y`), as
 /// [`Distribution1D::sample_reuse`] reuses `u.x`.
 pub(crate) struct FlatTriangleSample<'a> {
     /// Object-space corners.
@@ -190,7 +190,6 @@ pub(crate) struct FlatTriangleSample<'a> {
     pub radiance: Vec3,
     /// An affine matrix.
     pub render_from_object: &'a Mat4,
-    pub u: Vec2,
     pub cdf: (f32, f32),
     /// The triangle's index in the light's mesh.
     pub prim: usize,
@@ -353,7 +352,6 @@ impl AreaLight {
             area_pdf: tri.area_pdf,
             radiance: *radiance,
             render_from_object: self.render_from_object.matrix(),
-            u,
             cdf: (c0, c1),
             prim,
         })
@@ -373,7 +371,6 @@ impl AreaLight {
             area_pdf: tri.area_pdf,
             radiance,
             render_from_object: self.render_from_object.matrix(),
-            u: Vec2::ZERO,
             cdf: mesh.distribution.cell_bounds(prim),
             prim,
         }))

@@ -49,6 +49,11 @@ impl LightSampler {
         Some((i, self.probabilities[i]))
     }
 
+    /// The distribution [`LightSampler::sample`] picks from (`None`: it picks nothing).
+    pub(crate) fn distribution(&self) -> Option<&Distribution1D> {
+        self.distribution.as_ref()
+    }
+
     pub fn probability(&self, light: usize) -> f32 {
         self.probabilities[light]
     }
