@@ -752,12 +752,19 @@ impl Renderer<'_> {
             // can gathered into lanes that scatter sixteen at a time.
             let lane_done = |r: LaneResult,
                              live: &mut [(usize, usize, PathState, Vec3)],
+                             samplers: &mut [Sampler],
                              ended: &mut [bool],
                              shadows: &mut [(usize, ShadowQuery)],
                              shadow_rays: &mut [Ray],
                              ns: &mut usize| {
                 let i = r.tag as usize;
                 ended[i] = !r.apply(&mut live[i].2);
+                // Numbers the lanes drew from the path's stream.
+                if let Some(state) = r.rng_state() {
+                    if let Some(rng) = samplers[live[i].0].independent_rng() {
+                        rng.set_state(state);
+                    }
+                }
                 let (has, q) = r.shadow_query();
                 shadow_rays[*ns] = q.ray;
                 shadows[*ns] = (i, *q);
@@ -786,6 +793,7 @@ impl Renderer<'_> {
                         lane_done(
                             r,
                             &mut live,
+                            &mut samplers,
                             &mut ended,
                             &mut shadows,
                             &mut shadow_rays,

@@ -33,7 +33,7 @@ use crate::light::{FlatTriangleSample, Light};
 use crate::material::Material;
 use crate::math::lanes::{F32x16 as F, Mask16 as M, LANES};
 use crate::math::{gamma, round_away, Ray, INV_PI, PI};
-use crate::sampling::Sampler;
+use crate::sampling::{Pcg32, Sampler};
 use crate::scene::{BatchHit, Scene};
 use crate::texture::Texture;
 use glam::{Vec3, Vec3A};
@@ -107,6 +107,13 @@ pub(crate) struct DiffuseLanes {
     table: Option<Box<LightTable>>,
     /// Whether the table picks the lights ([`LightPicks`]).
     picks: bool,
+    /// The vertices whose numbers the lanes draw themselves (the independent sampler's,
+    /// where the lanes pick the light too): each one's PCG32 state and increment, and
+    /// the state its draws leave, which [`DiffuseLanes::finish`] hands back.
+    draws: M,
+    rng_state: [u64; LANES],
+    rng_inc: [u64; LANES],
+    rng_out: [u64; LANES],
     // Results.
     shadow: M,
     shadow_origin: F3,
@@ -132,6 +139,9 @@ pub(crate) struct LaneResult {
     /// Whether the vertex has a shadow ray, `query`, as [`PathTracer::step`] gives it.
     has_shadow: bool,
     query: ShadowQuery,
+    /// Where the lanes drew the vertex's numbers: the state its independent sampler's
+    /// stream is left in (set it with [`Pcg32::set_state`]).
+    rng_state: Option<u64>,
 }
 
 struct Next {
@@ -158,6 +168,13 @@ impl LaneResult {
     #[cfg(test)]
     pub(crate) fn shadow(&self) -> Option<ShadowQuery> {
         self.has_shadow.then_some(self.query)
+    }
+
+    /// Where the lanes drew the vertex's numbers, the state they leave its independent
+    /// sampler's stream in; hand it to the path's sampler before it draws again.
+    #[inline(always)]
+    pub(crate) fn rng_state(&self) -> Option<u64> {
+        self.rng_state
     }
 
     /// Whether the vertex has a shadow ray, and the ray (meaningless where it has none).
@@ -239,12 +256,24 @@ impl DiffuseLanes {
                 if let (Some(triangle), Some(diffuse)) =
                     (mesh.lane_triangle(prim), lane_diffuse(material))
                 {
-                    let u = VertexSamples::draw(sampler);
-                    let Some(light) = self.light(scene, &u) else {
-                        let si = scene.batch_interaction(&path.ray, hit);
-                        return Some(pt.scatter(scene, path, &si, material, &u, sampler, shadow));
+                    let stream = match self.picks {
+                        true => sampler.independent_rng().map(|rng| rng.parts()),
+                        false => None,
                     };
-                    let k = self.fill(pt, tag, path, diffuse, light, &u, sampler);
+                    let k = match stream {
+                        // The lanes draw the vertex's numbers, and pick its light.
+                        Some(stream) => self.fill_stream(pt, tag, path, diffuse, stream),
+                        None => {
+                            let u = VertexSamples::draw(sampler);
+                            let Some(light) = self.light(scene, &u) else {
+                                let si = scene.batch_interaction(&path.ray, hit);
+                                return Some(
+                                    pt.scatter(scene, path, &si, material, &u, sampler, shadow),
+                                );
+                            };
+                            self.fill(pt, tag, path, diffuse, light, &u, sampler)
+                        }
+                    };
                     self.from_hit.0[k] = true;
                     for (c, &p) in triangle.p.iter().enumerate() {
                         set3(&mut self.hit_corners[c], k, p);
@@ -328,13 +357,8 @@ impl DiffuseLanes {
         u: &VertexSamples,
         sampler: &mut Sampler,
     ) -> usize {
-        let k = self.len;
-        debug_assert!(k < LANES, "push into full lanes");
-        self.len += 1;
-        self.tag[k] = tag;
-        set3(&mut self.albedo, k, albedo);
-        self.one_sided.0[k] = one_sided;
-        set3(&mut self.beta, k, path.beta.into());
+        let k = self.fill_vertex(pt, tag, path, (albedo, one_sided));
+        self.draws.0[k] = false;
         self.u_dir[0][k] = u.u_dir.x;
         self.u_dir[1][k] = u.u_dir.y;
         self.lit.0[k] = !matches!(light, LaneLight::None);
@@ -358,11 +382,85 @@ impl DiffuseLanes {
         // `scatter` draws Russian roulette's number after the vertex's own, when the
         // path goes on past `rr_depth`; drawing it although the path then ends changes
         // nothing (the sampler starts the next sample afresh).
-        self.roulette.0[k] = path.depth >= pt.rr_depth;
         if self.roulette.0[k] {
             self.u_rr[k] = sampler.next_1d();
         }
         k
+    }
+
+    /// [`DiffuseLanes::fill`] for a vertex whose numbers the lanes draw from its
+    /// independent sampler's stream, `(state, increment)` (see
+    /// [`DiffuseLanes::draw_numbers`]), with its light picked by the lanes too.
+    #[inline(always)]
+    fn fill_stream(
+        &mut self,
+        pt: &PathTracer,
+        tag: u32,
+        path: &PathState,
+        diffuse: (Vec3, bool),
+        (state, inc): (u64, u64),
+    ) -> usize {
+        debug_assert!(
+            self.picks,
+            "the lanes pick the light of the numbers they draw"
+        );
+        let k = self.fill_vertex(pt, tag, path, diffuse);
+        self.lit.0[k] = true;
+        self.draws.0[k] = true;
+        self.rng_state[k] = state;
+        self.rng_inc[k] = inc;
+        k
+    }
+
+    /// Takes a vertex into the next lane: the path, the material's albedo and
+    /// sidedness, and whether Russian roulette runs after it. Returns the lane.
+    #[inline(always)]
+    fn fill_vertex(
+        &mut self,
+        pt: &PathTracer,
+        tag: u32,
+        path: &PathState,
+        (albedo, one_sided): (Vec3, bool),
+    ) -> usize {
+        let k = self.len;
+        debug_assert!(k < LANES, "push into full lanes");
+        self.len += 1;
+        self.tag[k] = tag;
+        set3(&mut self.albedo, k, albedo);
+        self.one_sided.0[k] = one_sided;
+        set3(&mut self.beta, k, path.beta.into());
+        self.roulette.0[k] = path.depth >= pt.rr_depth;
+        k
+    }
+
+    /// The numbers of the vertices whose numbers the lanes draw: those
+    /// [`VertexSamples::draw`] takes from the independent sampler (its stream's next
+    /// seven: the light's, the triangle's two, the direction's two, and two the lanes
+    /// do not use), then Russian roulette's (the eighth) where it runs, as
+    /// [`DiffuseLanes::fill`] would draw it; and the state that leaves. Each number is
+    /// one jump from the vertex's state ([`Pcg32::draw`]), lane by lane (the compiler
+    /// vectorises the loop: 64-bit products and a rotate per lane).
+    #[inline(always)]
+    fn draw_numbers(&mut self) {
+        for i in 0..LANES {
+            let (state, inc) = (self.rng_state[i], self.rng_inc[i]);
+            let (draws, roulette) = (self.draws.0[i], self.roulette.0[i]);
+            let u = |k: usize, kept: f32| match draws {
+                true => Pcg32::draw(k, state, inc),
+                false => kept,
+            };
+            self.u_light[i] = u(0, self.u_light[i]);
+            self.u_triangle[0][i] = u(2, self.u_triangle[0][i]);
+            self.u_triangle[1][i] = u(3, self.u_triangle[1][i]);
+            self.u_dir[0][i] = u(5, self.u_dir[0][i]);
+            self.u_dir[1][i] = u(6, self.u_dir[1][i]);
+            self.u_rr[i] = u(7, self.u_rr[i]);
+            let (seven, eight) = (
+                Pcg32::state_after(7, state, inc),
+                Pcg32::state_after(8, state, inc),
+            );
+            self.rng_out[i] = if roulette { eight } else { seven };
+        }
     }
 
     /// [`DiffuseLanes::run`] out of line, compiled for AVX-512 (the renderer's tile is
@@ -478,6 +576,9 @@ impl DiffuseLanes {
     /// notes); lanes not pushed compute garbage that nobody reads.
     #[inline(always)]
     pub(crate) fn run(&mut self, scene: &Scene) {
+        if self.draws.0[..self.len].contains(&true) {
+            self.draw_numbers();
+        }
         if self.from_hit.0[..self.len].contains(&true) {
             self.interactions(scene);
         }
@@ -705,6 +806,7 @@ impl DiffuseLanes {
                 next,
                 has_shadow: self.shadow.0[k],
                 query,
+                rng_state: self.draws.0[k].then_some(self.rng_out[k]),
             });
         }
         self.len = 0;
@@ -1392,7 +1494,16 @@ mod tests {
 
     /// Per vertex: what `scatter` gave (path, shadow ray, whether it goes on), and the
     /// path and sampler as the lanes took them.
-    type Pending = (PathState, Option<ShadowQuery>, bool, PathState, Sampler);
+    /// A vertex in lanes: `step`'s path, shadow ray, outcome and sampler, and the path
+    /// and sampler the lanes took it from.
+    type Pending = (
+        PathState,
+        Option<ShadowQuery>,
+        bool,
+        Sampler,
+        PathState,
+        Sampler,
+    );
 
     fn bits(v: Vec3) -> [u32; 3] {
         v.to_array().map(f32::to_bits)
@@ -1423,9 +1534,19 @@ mod tests {
     fn run_and_compare(lanes: &mut DiffuseLanes, scene: &Scene, pending: &mut Vec<Pending>) {
         lanes.run(scene);
         lanes.finish(|r| {
-            let (want, want_shadow, want_more, path, _) = &mut pending[r.tag as usize];
+            let (want, want_shadow, want_more, want_sampler, path, sampler) =
+                &mut pending[r.tag as usize];
             let more = r.apply(path);
             assert_same(path, more, &r.shadow(), want, *want_more, want_shadow);
+            // A path that goes on has its sampler where `step` left it (where the lanes
+            // drew its numbers, once given the state they leave).
+            if let Some(state) = r.rng_state() {
+                sampler.independent_rng().unwrap().set_state(state);
+            }
+            if *want_more {
+                let next = |s: &Sampler| s.clone().next_1d().to_bits();
+                assert_eq!(next(sampler), next(want_sampler));
+            }
         });
         pending.clear();
     }
@@ -1539,7 +1660,7 @@ mod tests {
                     // The lanes drew what `scatter` drew.
                     assert_eq!(sampler.next_1d(), want_sampler.next_1d());
                 }
-                pending.push((want, want_shadow, want_more, path, sampler));
+                pending.push((want, want_shadow, want_more, want_sampler, path, sampler));
                 if lanes.is_full() {
                     check(&mut lanes, &mut pending);
                 }
@@ -1616,7 +1737,7 @@ mod tests {
                     }
                     None => {
                         taken += 1;
-                        pending.push((want, want_shadow, want_more, path, sampler));
+                        pending.push((want, want_shadow, want_more, want_sampler, path, sampler));
                         if lanes.is_full() {
                             check(&mut lanes, &mut pending);
                         }

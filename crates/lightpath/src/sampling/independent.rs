@@ -69,6 +69,12 @@ impl IndependentSampler {
         self.sample_start = Some((self.rng, pixel, index));
     }
 
+    /// The stream the sampler draws from (for code that draws its numbers itself).
+    #[inline(always)]
+    pub(crate) fn rng_mut(&mut self) -> &mut Pcg32 {
+        &mut self.rng
+    }
+
     #[inline]
     pub fn next_1d(&mut self) -> f32 {
         self.rng.next_f32()

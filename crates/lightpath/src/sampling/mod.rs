@@ -32,6 +32,16 @@ pub enum Sampler {
 }
 
 impl Sampler {
+    /// The independent sampler's stream (`None` for other samplers), for code that
+    /// draws its numbers itself.
+    #[inline(always)]
+    pub(crate) fn independent_rng(&mut self) -> Option<&mut Pcg32> {
+        match self {
+            Sampler::Independent(s) => Some(s.rng_mut()),
+            _ => None,
+        }
+    }
+
     /// Samples per pixel.
     pub fn samples_per_pixel(&self) -> u32 {
         match self {

@@ -49,6 +49,34 @@ impl Pcg32 {
         out
     }
 
+    /// The state and the stream's increment, for code that draws the numbers of many
+    /// streams at once ([`Pcg32::draw`]).
+    #[inline(always)]
+    pub(crate) fn parts(&self) -> (u64, u64) {
+        (self.state, self.inc)
+    }
+
+    /// Moves the generator to `state` (of its own stream), as [`Pcg32::parts`] left
+    /// code that drew its numbers.
+    #[inline(always)]
+    pub(crate) fn set_state(&mut self, state: u64) {
+        self.state = state;
+    }
+
+    /// The float that [`Pcg32::next_f32`] gives after `k` numbers (`k` at most 8) of a
+    /// generator of `state` and increment `inc`: one jump and the output, for code that
+    /// draws the numbers of many streams at once.
+    #[inline(always)]
+    pub(crate) fn draw(k: usize, state: u64, inc: u64) -> f32 {
+        unit_f32(output(JUMPS[k].apply(state, inc)))
+    }
+
+    /// The state `k` numbers (at most 8) on from `state` in the stream of `inc`.
+    #[inline(always)]
+    pub(crate) fn state_after(k: usize, state: u64, inc: u64) -> u64 {
+        JUMPS[k].apply(state, inc)
+    }
+
     pub fn advance(&mut self, delta: u64) {
         let (acc_mult, acc_plus) = advance_map(delta, self.inc);
         self.state = acc_mult.wrapping_mul(self.state).wrapping_add(acc_plus);
