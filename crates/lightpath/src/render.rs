@@ -19,9 +19,9 @@ use crate::accel::RayStats;
 use crate::camera::{Camera, CameraSample};
 use crate::error::{Error, Result};
 use crate::film::Image;
-use crate::integrator::Integrator;
 #[cfg(target_arch = "x86_64")]
 use crate::integrator::{DiffuseLanes, LaneResult, PathState, PathTracer, ShadowQuery};
+use crate::integrator::{Integrator, LaneInstances};
 use crate::math::Ray;
 use crate::sampling::Sampler;
 #[cfg(target_arch = "x86_64")]
@@ -363,6 +363,7 @@ impl Renderer<'_> {
         let mut stats = RenderStats::default();
         let (mut done, mut passes) = (0u32, 0u32);
         let mut seconds_per_spp = None;
+        let lane_instances = LaneInstances::new(self.scene);
         loop {
             let size = schedule.next(done, start.elapsed(), seconds_per_spp);
             if size == 0 {
@@ -381,6 +382,7 @@ impl Renderer<'_> {
                 base: stats,
                 progress,
                 ray_batches,
+                lane_instances: &lane_instances,
             };
             let Some(mut pass_stats) = self.render_pass(&job, &mut sums) else {
                 break; // abandoned at the deadline
@@ -776,9 +778,16 @@ impl Renderer<'_> {
                 let mut shadow = None;
                 let hit = hits[i].take();
                 // `None`: the lanes took the vertex.
-                if let Some(more) =
-                    lanes.step(pt, self.scene, i as u32, path, hit, sampler, &mut shadow)
-                {
+                if let Some(more) = lanes.step(
+                    pt,
+                    self.scene,
+                    job.lane_instances,
+                    i as u32,
+                    path,
+                    hit,
+                    sampler,
+                    &mut shadow,
+                ) {
                     ended[i] = !more;
                     if let Some(q) = shadow {
                         shadow_rays[ns] = q.ray;
@@ -999,6 +1008,10 @@ struct PassJob<'a> {
     base: RenderStats,
     progress: Option<&'a (dyn Fn(&Progress) + Sync)>,
     ray_batches: Option<&'a (dyn Fn(RayBatch<'_>) + Sync)>,
+    /// The scene's instances as the path tracer's lanes take them (only x86-64 runs
+    /// the lanes).
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+    lane_instances: &'a LaneInstances,
 }
 
 impl PassJob<'_> {

@@ -150,6 +150,27 @@ struct Next {
     beta: Vec3A,
 }
 
+/// Of each instance of a scene, the albedo and sidedness of its material where the lanes
+/// run hits on it (it emits nothing, and its material is one [`lane_diffuse`] takes):
+/// built once per render, so that a vertex finds them with one load rather than by
+/// following the instance's material and texture.
+pub(crate) struct LaneInstances(Vec<Option<(Vec3, bool)>>);
+
+impl LaneInstances {
+    pub(crate) fn new(scene: &Scene) -> LaneInstances {
+        LaneInstances(
+            scene
+                .instances
+                .iter()
+                .map(|inst| match (&inst.emission, inst.material.as_deref()) {
+                    (None, Some(material)) => lane_diffuse(material),
+                    _ => None,
+                })
+                .collect(),
+        )
+    }
+}
+
 impl LaneResult {
     /// Moves the vertex's path on as `scatter` would; returns whether it goes on. A path
     /// that ends is written too (its ray, throughput, depth and previous vertex become
@@ -232,6 +253,7 @@ impl DiffuseLanes {
         &mut self,
         pt: &PathTracer,
         scene: &Scene,
+        instances: &LaneInstances,
         tag: u32,
         path: &mut PathState,
         hit: Option<BatchHit>,
@@ -245,17 +267,11 @@ impl DiffuseLanes {
         // A triangle of a surface that emits nothing: `arrive` has nothing to add, and
         // the lanes can build the interaction.
         if let Some((shape_hit, mesh, prim, instance)) = scene.batch_triangle(&hit) {
-            let inst = &scene.instances[instance as usize];
-            if inst.emission.is_none() {
+            if let Some(diffuse) = instances.0[instance as usize] {
                 if path.depth >= pt.max_depth {
                     return Some(false);
                 }
-                let Some(material) = inst.material.as_deref() else {
-                    return Some(false);
-                };
-                if let (Some(triangle), Some(diffuse)) =
-                    (mesh.lane_triangle(prim), lane_diffuse(material))
-                {
+                if let Some(triangle) = mesh.lane_triangle(prim) {
                     let stream = match self.picks {
                         true => sampler.independent_rng().map(|rng| rng.parts()),
                         false => None,
@@ -267,6 +283,10 @@ impl DiffuseLanes {
                             let u = VertexSamples::draw(sampler);
                             let Some(light) = self.light(scene, &u) else {
                                 let si = scene.batch_interaction(&path.ray, hit);
+                                let material = scene.instances[instance as usize]
+                                    .material
+                                    .as_deref()
+                                    .expect("a lane instance's material");
                                 return Some(
                                     pt.scatter(scene, path, &si, material, &u, sampler, shadow),
                                 );
@@ -1701,6 +1721,7 @@ mod tests {
             assert_eq!(lanes.table.is_some(), tabulated);
             // The lanes pick the light themselves where it is the only one.
             assert_eq!(lanes.picks, tabulated && !point);
+            let instances = LaneInstances::new(scene);
             let (mut taken, mut direct) = (0, 0);
             let mut pending: Vec<Pending> = Vec::new();
             let check = |lanes: &mut DiffuseLanes, pending: &mut Vec<Pending>| {
@@ -1730,7 +1751,16 @@ mod tests {
                 let tag = pending.len() as u32;
                 let mut shadow = None;
                 let [hit] = hit;
-                match lanes.step(&pt, scene, tag, &mut path, hit, &mut sampler, &mut shadow) {
+                match lanes.step(
+                    &pt,
+                    scene,
+                    &instances,
+                    tag,
+                    &mut path,
+                    hit,
+                    &mut sampler,
+                    &mut shadow,
+                ) {
                     Some(more) => {
                         direct += 1;
                         assert_same(&path, more, &shadow, &want, want_more, &want_shadow);
