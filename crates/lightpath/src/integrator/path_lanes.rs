@@ -90,8 +90,10 @@ pub(crate) struct DiffuseLanes {
     flipped: M,
     bary: [F; 2],
     direction: F3,
-    /// The hit and ray of each, for the rare triangle without area (built one by one).
-    hits: [Option<(ShapeHit, Ray)>; LANES],
+    /// The merged triangle and distance of each, for the rare triangle without area
+    /// (built one by one, with `direction`).
+    hit_prim: [u32; LANES],
+    hit_t: [f32; LANES],
     // The light sample: whether a light was picked, and its triangle.
     lit: M,
     reachable: M,
@@ -153,13 +155,56 @@ struct Next {
 /// Of each instance of a scene, the albedo and sidedness of its material where the lanes
 /// run hits on it (it emits nothing, and its material is one [`lane_diffuse`] takes):
 /// built once per render, so that a vertex finds them with one load rather than by
-/// following the instance's material and texture.
-pub(crate) struct LaneInstances(Vec<Option<(Vec3, bool)>>);
+/// following the instance's material and texture. Where all the scene's geometry is one
+/// merged mesh of at most [`LaneInstances::TABLE_TRIANGLES`] triangles, the same per
+/// triangle too, with what the lanes read of it ([`TriangleMesh::lane_triangle`]): a hit
+/// then finds all of it in one cache line.
+///
+/// [`TriangleMesh::lane_triangle`]: crate::geometry::TriangleMesh::lane_triangle
+pub(crate) struct LaneInstances {
+    materials: Vec<Option<(Vec3, bool)>>,
+    /// Per merged triangle (empty where there is no table).
+    triangles: Vec<HitTriangle>,
+    /// Per merged triangle, its vertex normals where it interpolates them (empty where
+    /// no triangle does).
+    normals: Vec<[Vec3; 3]>,
+}
+
+/// A merged triangle as the lanes take a hit on it: its corners, and its instance's
+/// albedo and sidedness (`flags`: [`HitTriangle::LANES`] where the lanes run its hits,
+/// then the others).
+#[derive(Clone, Copy, Default)]
+#[repr(C, align(64))]
+struct HitTriangle {
+    p: [Vec3; 3],
+    albedo: Vec3,
+    instance: u32,
+    flags: u32,
+}
+
+impl HitTriangle {
+    const LANES: u32 = 1;
+    const ONE_SIDED: u32 = 2;
+    const FLIPPED: u32 = 4;
+    const SMOOTH: u32 = 8;
+}
+
+/// What the lanes read of a hit's triangle (see [`LaneInstances::hit_triangle`]).
+struct LaneHit {
+    p: [Vec3; 3],
+    normals: Option<[Vec3; 3]>,
+    flipped: bool,
+    diffuse: (Vec3, bool),
+    instance: u32,
+}
 
 impl LaneInstances {
+    /// The most merged triangles tabulated (4 MiB of table).
+    pub(crate) const TABLE_TRIANGLES: usize = 1 << 16;
+
     pub(crate) fn new(scene: &Scene) -> LaneInstances {
-        LaneInstances(
-            scene
+        let mut lanes = LaneInstances {
+            materials: scene
                 .instances
                 .iter()
                 .map(|inst| match (&inst.emission, inst.material.as_deref()) {
@@ -167,7 +212,87 @@ impl LaneInstances {
                     _ => None,
                 })
                 .collect(),
-        )
+            triangles: Vec::new(),
+            normals: Vec::new(),
+        };
+        let Some(count) = scene
+            .merged_triangle_count()
+            .filter(|&n| n <= Self::TABLE_TRIANGLES)
+        else {
+            return lanes;
+        };
+        let mut normals = vec![[Vec3::ZERO; 3]; count];
+        let mut smooth = false;
+        lanes.triangles = (0..count as u32)
+            .map(|k| {
+                let (mesh, prim, instance) = scene.merged_triangle(k);
+                let mut t = HitTriangle {
+                    instance,
+                    ..Default::default()
+                };
+                if let (Some((albedo, one_sided)), Some(triangle)) =
+                    (lanes.materials[instance as usize], mesh.lane_triangle(prim))
+                {
+                    t.p = triangle.p;
+                    t.albedo = albedo;
+                    t.flags = HitTriangle::LANES
+                        | if one_sided { HitTriangle::ONE_SIDED } else { 0 }
+                        | if triangle.flipped {
+                            HitTriangle::FLIPPED
+                        } else {
+                            0
+                        };
+                    if let Some(n) = triangle.normals {
+                        t.flags |= HitTriangle::SMOOTH;
+                        normals[k as usize] = n;
+                        smooth = true;
+                    }
+                }
+                t
+            })
+            .collect();
+        if smooth {
+            lanes.normals = normals;
+        }
+        lanes
+    }
+
+    /// Without the per-triangle table (as for meshes of more triangles than it holds).
+    #[cfg(test)]
+    fn untabulated(scene: &Scene) -> LaneInstances {
+        LaneInstances {
+            triangles: Vec::new(),
+            normals: Vec::new(),
+            ..LaneInstances::new(scene)
+        }
+    }
+
+    /// The triangle of a hit on the scene's merged mesh, where the lanes run hits on it:
+    /// from the table where there is one, else from the mesh.
+    #[inline(always)]
+    fn hit_triangle(&self, scene: &Scene, prim: u32) -> Option<LaneHit> {
+        if let Some(t) = self.triangles.get(prim as usize) {
+            if t.flags & HitTriangle::LANES == 0 {
+                return None;
+            }
+            return Some(LaneHit {
+                p: t.p,
+                normals: (t.flags & HitTriangle::SMOOTH != 0).then(|| self.normals[prim as usize]),
+                flipped: t.flags & HitTriangle::FLIPPED != 0,
+                diffuse: (t.albedo, t.flags & HitTriangle::ONE_SIDED != 0),
+                instance: t.instance,
+            });
+        }
+        let (mesh, prim, instance) = scene.merged_triangle(prim);
+        let diffuse = self.materials[instance as usize]?;
+        let triangle = mesh.lane_triangle(prim)?;
+        Some(LaneHit {
+            p: triangle.p,
+            normals: triangle.normals,
+            flipped: triangle.flipped,
+            diffuse,
+            instance,
+        })
     }
 }
 
@@ -266,52 +391,51 @@ impl DiffuseLanes {
         };
         // A triangle of a surface that emits nothing: `arrive` has nothing to add, and
         // the lanes can build the interaction.
-        if let Some((shape_hit, mesh, prim, instance)) = scene.batch_triangle(&hit) {
-            if let Some(diffuse) = instances.0[instance as usize] {
+        if let Some(&shape_hit) = hit.merged() {
+            if let Some(triangle) = instances.hit_triangle(scene, shape_hit.prim) {
                 if path.depth >= pt.max_depth {
                     return Some(false);
                 }
-                if let Some(triangle) = mesh.lane_triangle(prim) {
-                    let stream = match self.picks {
-                        true => sampler.independent_rng().map(|rng| rng.parts()),
-                        false => None,
-                    };
-                    let k = match stream {
-                        // The lanes draw the vertex's numbers, and pick its light.
-                        Some(stream) => self.fill_stream(pt, tag, path, diffuse, stream),
-                        None => {
-                            let u = VertexSamples::draw(sampler);
-                            let Some(light) = self.light(scene, &u) else {
-                                let si = scene.batch_interaction(&path.ray, hit);
-                                let material = scene.instances[instance as usize]
-                                    .material
-                                    .as_deref()
-                                    .expect("a lane instance's material");
-                                return Some(
-                                    pt.scatter(scene, path, &si, material, &u, sampler, shadow),
-                                );
-                            };
-                            self.fill(pt, tag, path, diffuse, light, &u, sampler)
-                        }
-                    };
-                    self.from_hit.0[k] = true;
-                    for (c, &p) in triangle.p.iter().enumerate() {
-                        set3(&mut self.hit_corners[c], k, p);
+                let stream = match self.picks {
+                    true => sampler.independent_rng().map(|rng| rng.parts()),
+                    false => None,
+                };
+                let k = match stream {
+                    // The lanes draw the vertex's numbers, and pick its light.
+                    Some(stream) => self.fill_stream(pt, tag, path, triangle.diffuse, stream),
+                    None => {
+                        let u = VertexSamples::draw(sampler);
+                        let Some(light) = self.light(scene, &u) else {
+                            let si = scene.batch_interaction(&path.ray, hit);
+                            let material = scene.instances[triangle.instance as usize]
+                                .material
+                                .as_deref()
+                                .expect("a lane instance's material");
+                            return Some(
+                                pt.scatter(scene, path, &si, material, &u, sampler, shadow),
+                            );
+                        };
+                        self.fill(pt, tag, path, triangle.diffuse, light, &u, sampler)
                     }
-                    // (Flat lanes do not read their normals.)
-                    if let Some(normals) = triangle.normals {
-                        for (c, &n) in normals.iter().enumerate() {
-                            set3(&mut self.hit_normals[c], k, n);
-                        }
-                    }
-                    self.smooth.0[k] = triangle.normals.is_some();
-                    self.flipped.0[k] = triangle.flipped;
-                    self.bary[0][k] = shape_hit.uv.x;
-                    self.bary[1][k] = shape_hit.uv.y;
-                    set3(&mut self.direction, k, path.ray.direction);
-                    self.hits[k] = Some((shape_hit, path.ray));
-                    return None;
+                };
+                self.from_hit.0[k] = true;
+                for (c, &p) in triangle.p.iter().enumerate() {
+                    set3(&mut self.hit_corners[c], k, p);
                 }
+                // (Flat lanes do not read their normals.)
+                if let Some(normals) = triangle.normals {
+                    for (c, &n) in normals.iter().enumerate() {
+                        set3(&mut self.hit_normals[c], k, n);
+                    }
+                }
+                self.smooth.0[k] = triangle.normals.is_some();
+                self.flipped.0[k] = triangle.flipped;
+                self.bary[0][k] = shape_hit.uv.x;
+                self.bary[1][k] = shape_hit.uv.y;
+                set3(&mut self.direction, k, path.ray.direction);
+                self.hit_prim[k] = shape_hit.prim;
+                self.hit_t[k] = shape_hit.t;
+                return None;
             }
         }
         let si = scene.batch_interaction(&path.ray, hit);
@@ -789,7 +913,14 @@ impl DiffuseLanes {
         }
         for k in 0..self.len {
             if take.0[k] && degenerate.0[k] {
-                let (hit, ray) = self.hits[k].expect("a hit's ray");
+                let hit = ShapeHit {
+                    t: self.hit_t[k],
+                    prim: self.hit_prim[k],
+                    uv: glam::Vec2::new(self.bary[0][k], self.bary[1][k]),
+                };
+                // The interaction reads only the ray's direction.
+                let d = self.direction;
+                let ray = Ray::new(Vec3::ZERO, Vec3::new(d[0][k], d[1][k], d[2][k]));
                 let si = scene.merged_interaction(&ray, &hit);
                 self.set_interaction(k, &si);
             }
@@ -1708,8 +1839,15 @@ mod tests {
             clamp: None,
             hide_emitters: false,
         };
-        // Lanes with the light's triangles tabulated and without.
-        for (point, tabulated) in [(false, true), (true, true), (false, false), (true, false)] {
+        // Lanes with the light's triangles tabulated and without, and the hit triangles
+        // (`LaneInstances`) tabulated and without.
+        for (point, tabulated, hits_tabulated) in [
+            (false, true, true),
+            (false, true, false),
+            (true, true, true),
+            (false, false, false),
+            (true, false, true),
+        ] {
             let l = scene(point);
             let scene = &l.scene;
             let mut rng = Pcg32::new(8, point as u64);
@@ -1721,7 +1859,14 @@ mod tests {
             assert_eq!(lanes.table.is_some(), tabulated);
             // The lanes pick the light themselves where it is the only one.
             assert_eq!(lanes.picks, tabulated && !point);
-            let instances = LaneInstances::new(scene);
+            let instances = if hits_tabulated {
+                LaneInstances::new(scene)
+            } else {
+                LaneInstances::untabulated(scene)
+            };
+            assert_eq!(instances.triangles.is_empty(), !hits_tabulated);
+            // The shelf's bent normals are tabulated too.
+            assert_eq!(instances.normals.is_empty(), !hits_tabulated);
             let (mut taken, mut direct) = (0, 0);
             let mut pending: Vec<Pending> = Vec::new();
             let check = |lanes: &mut DiffuseLanes, pending: &mut Vec<Pending>| {

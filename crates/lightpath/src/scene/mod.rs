@@ -170,6 +170,18 @@ enum BatchHitKind {
     Interaction(Box<SurfaceInteraction>),
 }
 
+impl BatchHit {
+    /// The hit, where it is on the scene's merged mesh (its `prim` indexes that mesh:
+    /// see [`Scene::merged_triangle`]).
+    #[inline(always)]
+    pub(crate) fn merged(&self) -> Option<&ShapeHit> {
+        match &self.0 {
+            BatchHitKind::Merged(h) => Some(h),
+            BatchHitKind::Interaction(_) => None,
+        }
+    }
+}
+
 impl Scene {
     pub(crate) fn new(
         instances: Vec<Instance>,
@@ -453,23 +465,23 @@ impl Scene {
         }
     }
 
-    /// A hit of [`Scene::intersect_batch`] on the merged mesh: the hit, the mesh that
-    /// builds its interaction with the triangle's index there, and its instance.
-    #[inline(always)]
-    pub(crate) fn batch_triangle(
-        &self,
-        hit: &BatchHit,
-    ) -> Option<(ShapeHit, &TriangleMesh, u32, u32)> {
-        match &hit.0 {
-            BatchHitKind::Merged(h) => {
-                let (mesh, prim, instance) = self.merged[0].triangle(h.prim);
-                Some((*h, mesh, prim, instance))
-            }
-            BatchHitKind::Interaction(_) => None,
+    /// The triangles of the scene's merged mesh, where all its geometry is that mesh
+    /// (the hits [`Scene::intersect_batch`] gives are then all on it).
+    pub(crate) fn merged_triangle_count(&self) -> Option<usize> {
+        match (&self.merged[..], self.only_merged()) {
+            ([m], true) => Some(m.mesh.triangle_count()),
+            _ => None,
         }
     }
 
-    /// The interaction of a hit on the merged mesh (see [`Scene::batch_triangle`]).
+    /// Merged triangle `k`: the mesh that builds its interaction, its index there, and
+    /// its instance.
+    #[inline(always)]
+    pub(crate) fn merged_triangle(&self, k: u32) -> (&TriangleMesh, u32, u32) {
+        self.merged[0].triangle(k)
+    }
+
+    /// The interaction of a hit on the merged mesh (see [`BatchHit::merged`]).
     #[inline]
     pub(crate) fn merged_interaction(&self, ray: &Ray, hit: &ShapeHit) -> SurfaceInteraction {
         self.merged[0].interaction(ray, hit)
