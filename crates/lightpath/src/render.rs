@@ -22,6 +22,7 @@ use crate::film::Image;
 #[cfg(target_arch = "x86_64")]
 use crate::integrator::{DiffuseLanes, LaneResult, PathState, PathTracer, ShadowQuery};
 use crate::integrator::{Integrator, LaneInstances};
+use crate::math::lanes::{F32x16, Mask16, LANES};
 use crate::math::Ray;
 use crate::sampling::Sampler;
 #[cfg(target_arch = "x86_64")]
@@ -265,6 +266,53 @@ impl Renderer<'_> {
             ray.t_max = ray.t_max.min(far / cos);
         }
         Some((ray, weight, filter_weight))
+    }
+
+    /// Where every camera ray is [`Camera::generate_ray`]'s through `pixel + u` for the
+    /// sample's first two numbers `u` (a perspective camera and the box filter): the
+    /// rays as [`PinholeLanes`] computes them, sixteen at a time.
+    ///
+    /// [`PinholeLanes`]: crate::camera::PinholeLanes
+    fn pinhole_lanes(&self) -> Option<crate::camera::PinholeLanes> {
+        match (self.camera, &self.scene.filter) {
+            (Camera::Perspective(c), crate::film::Filter::Box) => Some(c.pinhole_lanes()),
+            _ => None,
+        }
+    }
+
+    /// [`Renderer::camera_ray`]'s rays for sixteen film points (up to `films.len()`),
+    /// with its cut to the clip distances: the rays, and the lanes where there is none
+    /// (seen at an angle of 90° or more from the viewing axis).
+    #[inline(always)]
+    fn pinhole_rays(
+        &self,
+        pinhole: &crate::camera::PinholeLanes,
+        films: &[(u32, Vec2)],
+    ) -> ([Ray; LANES], Mask16) {
+        let mut film = [F32x16::ZERO; 2];
+        for (k, (_, p)) in films.iter().enumerate() {
+            (film[0][k], film[1][k]) = (p.x, p.y);
+        }
+        let d = pinhole.directions(film);
+        let (mut t_min, mut t_max) = (F32x16::ZERO, F32x16::splat(f32::INFINITY));
+        let mut none = Mask16::default();
+        if let Some((near, far)) = self.scene.clip {
+            // `camera_ray`'s operations, lane by lane.
+            let forward = self.camera.render_from_camera().vector(Vec3::Z).normalize();
+            let cos = d[0] * forward.x + d[1] * forward.y + d[2] * forward.z;
+            none = cos.le(F32x16::ZERO);
+            t_min = t_min.max(near / cos);
+            t_max = t_max.min(far / cos);
+        }
+        let rays = std::array::from_fn(|k| {
+            Ray::with_range(
+                pinhole.origin,
+                Vec3::new(d[0][k], d[1][k], d[2][k]),
+                t_min[k],
+                t_max[k],
+            )
+        });
+        (rays, none)
     }
 
     /// Renders the image. `progress` is called with the fraction done (0 to 1) from the
@@ -670,13 +718,18 @@ impl Renderer<'_> {
         let mut slot_pixel: Vec<usize> = (0..w).collect();
         let mut next = vec![job.first; w];
         let mut next_pixel = w;
-        // Paths in flight: (slot, pixel, state, camera weight), in the order they started.
-        let mut live: Vec<(usize, usize, PathState, Vec3)> = Vec::with_capacity(w);
+        // Each slot's path (its state and camera weight), and the slots whose paths are
+        // in flight, in the order they started: a path stays in its slot, and only the
+        // slots' order moves as paths end.
+        let mut paths: Vec<(PathState, Vec3)> =
+            vec![(PathState::new(&Ray::new(Vec3::ZERO, Vec3::Z)), Vec3::ZERO); w];
+        let mut live: Vec<u32> = Vec::with_capacity(w);
         let mut restart: Vec<usize> = Vec::with_capacity(w);
         let mut rays: Vec<Ray> = Vec::with_capacity(w);
         let mut hits: Vec<Option<BatchHit>> = vec![None; w];
+        // Per slot.
         let mut ended = vec![false; w];
-        // A round's shadow rays, at most one per path (see `ns` below).
+        // A round's shadow rays, at most one per path (see `ns` below), with their slots.
         let mut shadows: Vec<(usize, ShadowQuery)> = vec![
             (
                 0,
@@ -691,6 +744,10 @@ impl Renderer<'_> {
         let mut ended_at = vec![0u32; w];
         let mut occluded = vec![false; w];
         let mut lanes = DiffuseLanes::new(self.scene);
+        // With a pinhole camera, each restart's slot and film point, whose rays are made
+        // sixteen at a time.
+        let pinhole = self.pinhole_lanes();
+        let mut films: Vec<(u32, Vec2)> = Vec::with_capacity(w);
         // Every slot starts as a restart. (The restarts are written out here rather than
         // as a closure called from two places, which the compiler kept out of line and,
         // being a closure of a function without target features, compiled as baseline
@@ -715,10 +772,16 @@ impl Renderer<'_> {
                     let sampler = &mut samplers[s];
                     sampler.start_pixel_sample(pixel, next[s]);
                     next[s] += 1;
+                    if pinhole.is_some() {
+                        // `camera_ray`'s film point (the box filter's `pixel + u`).
+                        films.push((s as u32, pixel.as_vec2() + sampler.next_2d()));
+                        break;
+                    }
                     match self.camera_ray(pixel, sampler) {
                         Some((ray, weight, filter_weight)) => {
                             stats.camera_rays += 1;
-                            live.push((s, k, PathState::new(&ray), weight * filter_weight));
+                            paths[s] = (PathState::new(&ray), weight * filter_weight);
+                            live.push(s as u32);
                             break;
                         }
                         None => {
@@ -727,8 +790,31 @@ impl Renderer<'_> {
                     }
                 }
             }
+            if let Some(pinhole) = &pinhole {
+                for chunk in films.chunks(LANES) {
+                    let (rays, none) = self.pinhole_rays(pinhole, chunk);
+                    for (k, &(s, _)) in chunk.iter().enumerate() {
+                        if none.0[k] {
+                            // No camera ray: the integrator's value for the sample, and
+                            // the slot's next sample in the next round.
+                            let k = slot_pixel[s as usize];
+                            add_sample(&mut pixels[k], self.integrator.no_ray_value(), &mut stats);
+                            restart.push(s as usize);
+                            continue;
+                        }
+                        // The camera's weight and the box filter's are both 1.
+                        paths[s as usize] = (PathState::new(&rays[k]), Vec3::ONE);
+                        live.push(s);
+                        stats.camera_rays += 1;
+                    }
+                }
+                films.clear();
+            }
             if live.is_empty() {
-                break;
+                if restart.is_empty() {
+                    break;
+                }
+                continue;
             }
             if job.abandon_now(abandoned) {
                 return None;
@@ -736,7 +822,7 @@ impl Renderer<'_> {
             let m = live.len();
             let mut ray_stats = RayStats::default();
             rays.clear();
-            rays.extend(live.iter().map(|(_, _, path, _)| path.ray));
+            rays.extend(live.iter().map(|&s| paths[s as usize].0.ray));
             if let Some(record) = job.ray_batches {
                 record(RayBatch {
                     shadow: false,
@@ -752,29 +838,31 @@ impl Renderer<'_> {
             let mut ns = 0;
             // Each path's vertex: `PathTracer::step` in parts, with the vertices that
             // can gathered into lanes that scatter sixteen at a time.
+            // (The lanes' tag of a vertex is its path's slot.)
             let lane_done = |r: LaneResult,
-                             live: &mut [(usize, usize, PathState, Vec3)],
+                             paths: &mut [(PathState, Vec3)],
                              samplers: &mut [Sampler],
                              ended: &mut [bool],
                              shadows: &mut [(usize, ShadowQuery)],
                              shadow_rays: &mut [Ray],
                              ns: &mut usize| {
-                let i = r.tag as usize;
-                ended[i] = !r.apply(&mut live[i].2);
+                let s = r.tag as usize;
+                ended[s] = !r.apply(&mut paths[s].0);
                 // Numbers the lanes drew from the path's stream.
                 if let Some(state) = r.rng_state() {
-                    if let Some(rng) = samplers[live[i].0].independent_rng() {
+                    if let Some(rng) = samplers[s].independent_rng() {
                         rng.set_state(state);
                     }
                 }
                 let (has, q) = r.shadow_query();
                 shadow_rays[*ns] = q.ray;
-                shadows[*ns] = (i, *q);
+                shadows[*ns] = (s, *q);
                 *ns += has as usize;
             };
             for i in 0..m {
-                let (slot, _, path, _) = &mut live[i];
-                let sampler = &mut samplers[*slot];
+                let slot = live[i] as usize;
+                let path = &mut paths[slot].0;
+                let sampler = &mut samplers[slot];
                 let mut shadow = None;
                 let hit = hits[i].take();
                 // `None`: the lanes took the vertex.
@@ -782,16 +870,16 @@ impl Renderer<'_> {
                     pt,
                     self.scene,
                     job.lane_instances,
-                    i as u32,
+                    slot as u32,
                     path,
                     hit,
                     sampler,
                     &mut shadow,
                 ) {
-                    ended[i] = !more;
+                    ended[slot] = !more;
                     if let Some(q) = shadow {
                         shadow_rays[ns] = q.ray;
-                        shadows[ns] = (i, q);
+                        shadows[ns] = (slot, q);
                         ns += 1;
                     }
                 }
@@ -801,7 +889,7 @@ impl Renderer<'_> {
                     lanes.finish(|r| {
                         lane_done(
                             r,
-                            &mut live,
+                            &mut paths,
                             &mut samplers,
                             &mut ended,
                             &mut shadows,
@@ -819,28 +907,34 @@ impl Renderer<'_> {
             }
             self.scene
                 .occluded_batch(&shadow_rays[..ns], &mut occluded[..ns], &mut ray_stats);
-            for ((i, q), &blocked) in shadows[..ns].iter().zip(&occluded[..ns]) {
+            for ((s, q), &blocked) in shadows[..ns].iter().zip(&occluded[..ns]) {
                 if !blocked {
-                    q.add_to(&mut live[*i].2);
+                    q.add_to(&mut paths[*s].0);
                 }
             }
             // Retire the paths that ended, in order: their samples, then their pixels'
             // next samples. The others keep their order (neighbours in the list are
             // neighbouring pixels), moved down without branching on which ended.
             let mut e = 0;
-            for (i, &end) in ended[..m].iter().enumerate() {
-                ended_at[e] = i as u32;
-                e += end as usize;
+            for &s in &live {
+                ended_at[e] = s;
+                e += ended[s as usize] as usize;
             }
-            for &i in &ended_at[..e] {
-                let (slot, k, path, weight) = &live[i as usize];
-                add_sample(&mut pixels[*k], pt.finish(path) * *weight, &mut stats);
-                restart.push(*slot);
+            for &s in &ended_at[..e] {
+                let s = s as usize;
+                let (path, weight) = &paths[s];
+                add_sample(
+                    &mut pixels[slot_pixel[s]],
+                    pt.finish(path) * *weight,
+                    &mut stats,
+                );
+                restart.push(s);
             }
             let mut kept = 0;
             for i in 0..m {
-                live[kept] = live[i];
-                kept += !ended[i] as usize;
+                let s = live[i];
+                live[kept] = s;
+                kept += !ended[s as usize] as usize;
             }
             live.truncate(kept);
             stats.add_rays(&ray_stats);
@@ -1049,8 +1143,11 @@ impl Schedule {
 mod tests {
     use super::*;
     use crate::accel::AccelKind;
+    use crate::camera::{FovAxis, Perspective};
     use crate::io::{load_scene_str, LoadOptions, LoadedScene};
+    use crate::math::Transform;
     use crate::scene::CropWindow;
+    use glam::{Mat4, Vec4};
     use std::path::Path;
 
     fn scene(sampler: &str, spp: u32) -> LoadedScene {
@@ -1221,6 +1318,87 @@ mod tests {
         l
     }
 
+    /// The image of each sample's path traced alone by `PathTracer::li` (and the rays
+    /// traced).
+    fn one_by_one(r: &Renderer, spp: u32) -> (Image, u64) {
+        let res = r.camera.resolution();
+        let mut sampler_state = r.sampler.clone();
+        let mut ray_stats = RayStats::default();
+        let mut want = Vec::new();
+        let mut rays = 0u64;
+        for y in 0..res.y {
+            for x in 0..res.x {
+                let pixel = UVec2::new(x, y);
+                let mut sum = Vec3::ZERO;
+                for index in 0..spp {
+                    sampler_state.start_pixel_sample(pixel, index);
+                    if let Some((ray, weight, filter_weight)) =
+                        r.camera_ray(pixel, &mut sampler_state)
+                    {
+                        let value =
+                            r.integrator
+                                .li(r.scene, &ray, &mut sampler_state, &mut ray_stats)
+                                * (weight * filter_weight);
+                        if value.is_finite() {
+                            sum += value;
+                        }
+                    } else {
+                        sum += r.integrator.no_ray_value();
+                    }
+                }
+                rays += ray_stats.rays as u64;
+                ray_stats = RayStats::default();
+                want.push(sum / spp as f32);
+            }
+        }
+        let image = Image {
+            width: res.x,
+            height: res.y,
+            pixels: want,
+        };
+        (image, rays)
+    }
+
+    /// The tile that advances paths together makes a pinhole camera's rays sixteen at a
+    /// time: the same rays as one by one, with the scene's clip distances, and none
+    /// where a sheared camera looks at 90° or more from its viewing axis.
+    #[test]
+    fn pinhole_rays_equal_camera_rays() {
+        let mut l = mesh_scene_built("independent", "pathtracer", 3, None, AccelKind::Bvh8);
+        let Some(Camera::Perspective(loaded)) = l.scene.camera.clone() else {
+            panic!("a perspective camera");
+        };
+        // Camera-space z gains 3x: rays with x below -1/3 look backwards.
+        let shear = Mat4::from_cols(Vec4::X + 3.0 * Vec4::Z, Vec4::Y, Vec4::Z, Vec4::W);
+        let sheared = Transform::from_matrix(*loaded.render_from_camera.matrix() * shear)
+            .expect("an invertible shear");
+        for (clip, transform) in [
+            (None, loaded.render_from_camera),
+            (Some((5.5, 7.0)), loaded.render_from_camera),
+            (Some((0.5, 100.0)), sheared),
+        ] {
+            l.scene.clip = clip;
+            l.scene.camera = Some(Camera::Perspective(Perspective::new(
+                loaded.resolution,
+                90.0,
+                FovAxis::X,
+                transform,
+            )));
+            let r = renderer(&l);
+            assert!(r.pinhole_lanes().is_some());
+            let (image, stats) = r.render(&|_| {}).unwrap();
+            let (want, rays) = one_by_one(&r, 3);
+            assert!(want.pixels.iter().any(|p| p.x > 0.0), "the scene is lit");
+            assert_eq!(bits(&image), bits(&want), "{clip:?}");
+            assert_eq!(stats.rays, rays, "{clip:?}");
+        }
+        // The sheared camera sees nothing on its left.
+        let r = renderer(&l);
+        let mut sampler = r.sampler.clone();
+        sampler.start_pixel_sample(UVec2::new(0, 5), 0);
+        assert!(r.camera_ray(UVec2::new(0, 5), &mut sampler).is_none());
+    }
+
     /// The path tracer on a scene that traces packets (many paths advanced together,
     /// their rays traced in batches) renders exactly the image of each sample's path
     /// traced alone by `PathTracer::li`, in several passes as in one, for every sampler.
@@ -1250,39 +1428,7 @@ mod tests {
             assert!(l.integrator.path_tracer().is_some());
             let r = renderer(&l);
             let (image, stats) = r.render(&|_| {}).unwrap();
-            let res = r.camera.resolution();
-            let mut sampler_state = r.sampler.clone();
-            let mut ray_stats = RayStats::default();
-            let mut want = Vec::new();
-            let mut rays = 0u64;
-            for y in 0..res.y {
-                for x in 0..res.x {
-                    let pixel = UVec2::new(x, y);
-                    let mut sum = Vec3::ZERO;
-                    for index in 0..spp {
-                        sampler_state.start_pixel_sample(pixel, index);
-                        if let Some((ray, weight, filter_weight)) =
-                            r.camera_ray(pixel, &mut sampler_state)
-                        {
-                            let value =
-                                r.integrator
-                                    .li(r.scene, &ray, &mut sampler_state, &mut ray_stats)
-                                    * (weight * filter_weight);
-                            if value.is_finite() {
-                                sum += value;
-                            }
-                        }
-                    }
-                    rays += ray_stats.rays as u64;
-                    ray_stats = RayStats::default();
-                    want.push(sum / spp as f32);
-                }
-            }
-            let want = Image {
-                width: res.x,
-                height: res.y,
-                pixels: want,
-            };
+            let (want, rays) = one_by_one(&r, spp);
             assert!(want.pixels.iter().any(|p| p.x > 0.0), "the scene is lit");
             assert_eq!(bits(&image), bits(&want), "{sampler} {integrator}");
             assert_eq!(stats.rays, rays, "{sampler} {integrator}");

@@ -12,7 +12,7 @@ mod thin_lens;
 
 pub use fisheye::{Fisheye, FisheyeMapping};
 pub use orthographic::Orthographic;
-pub use perspective::Perspective;
+pub use perspective::{Perspective, PinholeLanes};
 pub use realistic::{FlareSampling, Realistic, RealisticOptions, LAMBDA_D};
 pub use thin_lens::{Aperture, ThinLens};
 

@@ -11,6 +11,7 @@
 //! ```
 
 use super::{normalized_film, CameraSample, FovAxis};
+use crate::math::lanes::F32x16 as F;
 use crate::math::{Ray, Transform};
 use glam::{UVec2, Vec2, Vec3};
 
@@ -53,6 +54,58 @@ impl Perspective {
     }
 }
 
+/// [`Perspective::generate_ray`] for sixteen film points at once (see
+/// [`Perspective::pinhole_lanes`]).
+#[derive(Debug, Clone, Copy)]
+pub struct PinholeLanes {
+    /// Every ray's origin.
+    pub origin: Vec3,
+    resolution: Vec2,
+    half_extents: Vec2,
+    /// The render-from-camera transform's first three columns.
+    axes: [Vec3; 3],
+}
+
+impl PinholeLanes {
+    /// The unit directions of the rays through sixteen film points (`film[0]`: x,
+    /// `film[1]`: y): lane by lane the bits of [`Perspective::generate_ray`]'s, by the
+    /// same operations in the same order (those of `normalized_film`, glam's
+    /// `transform_vector3` and `normalize`), no multiply-adds fused.
+    #[inline(always)]
+    pub fn directions(&self, film: [F; 2]) -> [F; 3] {
+        let n = [
+            (2.0 * film[0] / self.resolution.x - 1.0) * self.half_extents.x,
+            (2.0 * film[1] / self.resolution.y - 1.0) * self.half_extents.y,
+        ];
+        let [x, y, z] = self.axes;
+        // `x·nx`, plus `y·ny`, plus `z·1` (`z` itself).
+        let d = [
+            n[1] * y.x + n[0] * x.x + z.x,
+            n[1] * y.y + n[0] * x.y + z.y,
+            n[1] * y.z + n[0] * x.z + z.z,
+        ];
+        let recip = 1.0 / (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        [d[0] * recip, d[1] * recip, d[2] * recip]
+    }
+}
+
+impl Perspective {
+    /// The camera's rays as [`PinholeLanes`] computes them, sixteen at a time.
+    pub fn pinhole_lanes(&self) -> PinholeLanes {
+        let m = &self.render_from_camera;
+        PinholeLanes {
+            origin: m.point(Vec3::ZERO),
+            resolution: self.resolution.as_vec2(),
+            half_extents: self.half_extents,
+            axes: [
+                m.matrix().x_axis.truncate(),
+                m.matrix().y_axis.truncate(),
+                m.matrix().z_axis.truncate(),
+            ],
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -61,6 +114,59 @@ mod tests {
         CameraSample {
             film: Vec2::new(x, y),
             lens: Vec2::splat(0.5),
+        }
+    }
+
+    #[test]
+    fn pinhole_lanes_equal_generate_ray() {
+        use crate::sampling::Pcg32;
+        let mut rng = Pcg32::new(3, 9);
+        for (res, fov, axis) in [
+            (UVec2::new(400, 300), 90.0, FovAxis::X),
+            (UVec2::new(256, 256), 19.5, FovAxis::Y),
+            (UVec2::new(7, 1000), 150.0, FovAxis::Diagonal),
+        ] {
+            for look in [
+                Transform::IDENTITY,
+                Transform::look_at(
+                    Vec3::new(0.3, -5.0, 1.2),
+                    Vec3::new(0.1, 0.2, -0.3),
+                    Vec3::new(0.0, 0.0, -1.0),
+                )
+                .unwrap(),
+                Transform::look_at(Vec3::new(-2.0, 1.0, 4.0), Vec3::ZERO, Vec3::Y).unwrap(),
+            ] {
+                let cam = Perspective::new(res, fov, axis, look);
+                let lanes = cam.pinhole_lanes();
+                for _ in 0..200 {
+                    let [mut fx, mut fy] = [F::ZERO; 2];
+                    for (x, y) in fx.0.iter_mut().zip(fy.0.iter_mut()) {
+                        *x = rng.next_f32() * res.x as f32;
+                        *y = rng.next_f32() * res.y as f32;
+                    }
+                    let mut film = [fx, fy];
+                    // Pixel corners and centres too.
+                    film[0][0] = 0.0;
+                    film[1][1] = res.y as f32 / 2.0;
+                    film[0][2] = res.x as f32 / 2.0;
+                    let d = lanes.directions(film);
+                    for i in 0..16 {
+                        let want = cam.generate_ray(&sample(film[0][i], film[1][i]));
+                        assert_eq!(
+                            lanes.origin.to_array().map(f32::to_bits),
+                            want.origin.to_array().map(f32::to_bits)
+                        );
+                        let got = [d[0][i], d[1][i], d[2][i]];
+                        assert_eq!(
+                            got.map(f32::to_bits),
+                            want.direction.to_array().map(f32::to_bits),
+                            "film ({}, {})",
+                            film[0][i],
+                            film[1][i]
+                        );
+                    }
+                }
+            }
         }
     }
 
