@@ -611,7 +611,9 @@ impl Renderer<'_> {
         abandoned: &AtomicBool,
     ) -> Option<(Vec<Vec3>, RenderStats)> {
         // SAFETY: the caller guarantees the AVX2 tier that `run_avx2` needs.
-        let run = |lanes: &mut DiffuseLanes, scene: &Scene| unsafe { lanes.run_avx2(scene) };
+        let run = |lanes: &mut DiffuseLanes, scene: &Scene, instances: &LaneInstances| unsafe {
+            lanes.run_avx2(scene, instances)
+        };
         self.render_tile_wavefront(pt, x0, y0, job, sums, abandoned, run)
     }
 
@@ -633,7 +635,9 @@ impl Renderer<'_> {
         abandoned: &AtomicBool,
     ) -> Option<(Vec<Vec3>, RenderStats)> {
         // SAFETY: the caller guarantees the AVX-512 that `run_avx512` needs.
-        let run = |lanes: &mut DiffuseLanes, scene: &Scene| unsafe { lanes.run_avx512(scene) };
+        let run = |lanes: &mut DiffuseLanes, scene: &Scene, instances: &LaneInstances| unsafe {
+            lanes.run_avx512(scene, instances)
+        };
         self.render_tile_wavefront(pt, x0, y0, job, sums, abandoned, run)
     }
 
@@ -692,7 +696,7 @@ impl Renderer<'_> {
         job: &PassJob,
         sums: &[Vec3],
         abandoned: &AtomicBool,
-        run_lanes: impl Fn(&mut DiffuseLanes, &Scene),
+        run_lanes: impl Fn(&mut DiffuseLanes, &Scene, &LaneInstances),
     ) -> Option<(Vec<Vec3>, RenderStats)> {
         let res = job.res;
         let (x1, y1) = ((x0 + TILE_SIZE).min(res.x), (y0 + TILE_SIZE).min(res.y));
@@ -885,7 +889,7 @@ impl Renderer<'_> {
                 }
                 // The lanes run when full, and after the round's last vertex.
                 if lanes.is_full() || (i + 1 == m && lanes.len() > 0) {
-                    run_lanes(&mut lanes, self.scene);
+                    run_lanes(&mut lanes, self.scene, job.lane_instances);
                     lanes.finish(|r| {
                         lane_done(
                             r,

@@ -84,6 +84,10 @@ pub(crate) struct DiffuseLanes {
     // Vertices pushed as hits on the merged mesh, whose interactions the lanes build
     // (`TriangleMesh::interaction`): the triangle, the barycentrics and the ray.
     from_hit: M,
+    /// The vertices whose triangle's corners, flags and albedo the lanes take from its
+    /// row in [`LaneInstances`]' table (row `row`).
+    from_row: M,
+    row: [u32; LANES],
     hit_corners: [F3; 3],
     hit_normals: [F3; 3],
     smooth: M,
@@ -157,8 +161,9 @@ struct Next {
 /// built once per render, so that a vertex finds them with one load rather than by
 /// following the instance's material and texture. Where all the scene's geometry is one
 /// merged mesh of at most [`LaneInstances::TABLE_TRIANGLES`] triangles, the same per
-/// triangle too, with what the lanes read of it ([`TriangleMesh::lane_triangle`]): a hit
-/// then finds all of it in one cache line.
+/// triangle too, with what the lanes read of it ([`TriangleMesh::lane_triangle`]) in one
+/// 64-byte row: a vertex then stores just its row's index, and the lanes gather the
+/// rows' fields when they run ([`DiffuseLanes::take_rows`]).
 ///
 /// [`TriangleMesh::lane_triangle`]: crate::geometry::TriangleMesh::lane_triangle
 pub(crate) struct LaneInstances {
@@ -190,12 +195,36 @@ impl HitTriangle {
 }
 
 /// What the lanes read of a hit's triangle (see [`LaneInstances::hit_triangle`]).
-struct LaneHit {
-    p: [Vec3; 3],
-    normals: Option<[Vec3; 3]>,
-    flipped: bool,
-    diffuse: (Vec3, bool),
-    instance: u32,
+enum LaneHit<'a> {
+    /// The triangle's row in the table.
+    Row(&'a HitTriangle),
+    /// The triangle as the mesh gives it.
+    Mesh {
+        p: [Vec3; 3],
+        normals: Option<[Vec3; 3]>,
+        flipped: bool,
+        diffuse: (Vec3, bool),
+        instance: u32,
+    },
+}
+
+impl LaneHit<'_> {
+    #[inline(always)]
+    fn instance(&self) -> u32 {
+        match self {
+            LaneHit::Row(t) => t.instance,
+            LaneHit::Mesh { instance, .. } => *instance,
+        }
+    }
+
+    /// The albedo and sidedness, where the vertex takes them now (not from its row).
+    #[inline(always)]
+    fn diffuse(&self) -> Option<(Vec3, bool)> {
+        match self {
+            LaneHit::Row(_) => None,
+            LaneHit::Mesh { diffuse, .. } => Some(*diffuse),
+        }
+    }
 }
 
 impl LaneInstances {
@@ -268,25 +297,17 @@ impl LaneInstances {
     }
 
     /// The triangle of a hit on the scene's merged mesh, where the lanes run hits on it:
-    /// from the table where there is one, else from the mesh.
+    /// its table row where there is a table (the lanes take the row's fields when they
+    /// run), else what the mesh gives.
     #[inline(always)]
-    fn hit_triangle(&self, scene: &Scene, prim: u32) -> Option<LaneHit> {
+    fn hit_triangle(&self, scene: &Scene, prim: u32) -> Option<LaneHit<'_>> {
         if let Some(t) = self.triangles.get(prim as usize) {
-            if t.flags & HitTriangle::LANES == 0 {
-                return None;
-            }
-            return Some(LaneHit {
-                p: t.p,
-                normals: (t.flags & HitTriangle::SMOOTH != 0).then(|| self.normals[prim as usize]),
-                flipped: t.flags & HitTriangle::FLIPPED != 0,
-                diffuse: (t.albedo, t.flags & HitTriangle::ONE_SIDED != 0),
-                instance: t.instance,
-            });
+            return (t.flags & HitTriangle::LANES != 0).then_some(LaneHit::Row(t));
         }
         let (mesh, prim, instance) = scene.merged_triangle(prim);
         let diffuse = self.materials[instance as usize]?;
         let triangle = mesh.lane_triangle(prim)?;
-        Some(LaneHit {
+        Some(LaneHit::Mesh {
             p: triangle.p,
             normals: triangle.normals,
             flipped: triangle.flipped,
@@ -400,14 +421,15 @@ impl DiffuseLanes {
                     true => sampler.independent_rng().map(|rng| rng.parts()),
                     false => None,
                 };
+                let diffuse = triangle.diffuse();
                 let k = match stream {
                     // The lanes draw the vertex's numbers, and pick its light.
-                    Some(stream) => self.fill_stream(pt, tag, path, triangle.diffuse, stream),
+                    Some(stream) => self.fill_stream(pt, tag, path, diffuse, stream),
                     None => {
                         let u = VertexSamples::draw(sampler);
                         let Some(light) = self.light(scene, &u) else {
                             let si = scene.batch_interaction(&path.ray, hit);
-                            let material = scene.instances[triangle.instance as usize]
+                            let material = scene.instances[triangle.instance() as usize]
                                 .material
                                 .as_deref()
                                 .expect("a lane instance's material");
@@ -415,21 +437,41 @@ impl DiffuseLanes {
                                 pt.scatter(scene, path, &si, material, &u, sampler, shadow),
                             );
                         };
-                        self.fill(pt, tag, path, triangle.diffuse, light, &u, sampler)
+                        self.fill(pt, tag, path, diffuse, light, &u, sampler)
                     }
                 };
                 self.from_hit.0[k] = true;
-                for (c, &p) in triangle.p.iter().enumerate() {
-                    set3(&mut self.hit_corners[c], k, p);
-                }
-                // (Flat lanes do not read their normals.)
-                if let Some(normals) = triangle.normals {
-                    for (c, &n) in normals.iter().enumerate() {
-                        set3(&mut self.hit_normals[c], k, n);
+                match triangle {
+                    LaneHit::Row(t) => {
+                        // The corners, flags and albedo come from the row when the lanes
+                        // run ([`DiffuseLanes::take_rows`]); the vertex normals now.
+                        self.row[k] = shape_hit.prim;
+                        if t.flags & HitTriangle::SMOOTH != 0 {
+                            let normals = &instances.normals[shape_hit.prim as usize];
+                            for (c, &n) in normals.iter().enumerate() {
+                                set3(&mut self.hit_normals[c], k, n);
+                            }
+                        }
+                    }
+                    LaneHit::Mesh {
+                        p,
+                        normals,
+                        flipped,
+                        ..
+                    } => {
+                        for (c, &p) in p.iter().enumerate() {
+                            set3(&mut self.hit_corners[c], k, p);
+                        }
+                        // (Flat lanes do not read their normals.)
+                        if let Some(normals) = normals {
+                            for (c, &n) in normals.iter().enumerate() {
+                                set3(&mut self.hit_normals[c], k, n);
+                            }
+                        }
+                        self.smooth.0[k] = normals.is_some();
+                        self.flipped.0[k] = flipped;
                     }
                 }
-                self.smooth.0[k] = triangle.normals.is_some();
-                self.flipped.0[k] = triangle.flipped;
                 self.bary[0][k] = shape_hit.uv.x;
                 self.bary[1][k] = shape_hit.uv.y;
                 set3(&mut self.direction, k, path.ray.direction);
@@ -469,7 +511,7 @@ impl DiffuseLanes {
         let (Some(diffuse), Some(light)) = (lane_diffuse(material), self.light(scene, u)) else {
             return false;
         };
-        let k = self.fill(pt, tag, path, diffuse, light, u, sampler);
+        let k = self.fill(pt, tag, path, Some(diffuse), light, u, sampler);
         self.from_hit.0[k] = false;
         self.set_interaction(k, si);
         true
@@ -496,12 +538,12 @@ impl DiffuseLanes {
         pt: &PathTracer,
         tag: u32,
         path: &PathState,
-        (albedo, one_sided): (Vec3, bool),
+        diffuse: Option<(Vec3, bool)>,
         light: LaneLight<'_>,
         u: &VertexSamples,
         sampler: &mut Sampler,
     ) -> usize {
-        let k = self.fill_vertex(pt, tag, path, (albedo, one_sided));
+        let k = self.fill_vertex(pt, tag, path, diffuse);
         self.draws.0[k] = false;
         self.u_dir[0][k] = u.u_dir.x;
         self.u_dir[1][k] = u.u_dir.y;
@@ -541,7 +583,7 @@ impl DiffuseLanes {
         pt: &PathTracer,
         tag: u32,
         path: &PathState,
-        diffuse: (Vec3, bool),
+        diffuse: Option<(Vec3, bool)>,
         (state, inc): (u64, u64),
     ) -> usize {
         debug_assert!(
@@ -557,21 +599,25 @@ impl DiffuseLanes {
     }
 
     /// Takes a vertex into the next lane: the path, the material's albedo and
-    /// sidedness, and whether Russian roulette runs after it. Returns the lane.
+    /// sidedness (`None`: from the vertex's table row, see [`DiffuseLanes::take_rows`]),
+    /// and whether Russian roulette runs after it. Returns the lane.
     #[inline(always)]
     fn fill_vertex(
         &mut self,
         pt: &PathTracer,
         tag: u32,
         path: &PathState,
-        (albedo, one_sided): (Vec3, bool),
+        diffuse: Option<(Vec3, bool)>,
     ) -> usize {
         let k = self.len;
         debug_assert!(k < LANES, "push into full lanes");
         self.len += 1;
         self.tag[k] = tag;
-        set3(&mut self.albedo, k, albedo);
-        self.one_sided.0[k] = one_sided;
+        self.from_row.0[k] = diffuse.is_none();
+        if let Some((albedo, one_sided)) = diffuse {
+            set3(&mut self.albedo, k, albedo);
+            self.one_sided.0[k] = one_sided;
+        }
         set3(&mut self.beta, k, path.beta.into());
         self.roulette.0[k] = path.depth >= pt.rr_depth;
         k
@@ -615,8 +661,8 @@ impl DiffuseLanes {
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
     #[inline(never)]
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
-    pub(crate) unsafe fn run_avx512(&mut self, scene: &Scene) {
-        self.run(scene)
+    pub(crate) unsafe fn run_avx512(&mut self, scene: &Scene, instances: &LaneInstances) {
+        self.run(scene, instances)
     }
 
     /// [`DiffuseLanes::run`] out of line, compiled for the AVX2 tier (two 8-lane
@@ -628,8 +674,8 @@ impl DiffuseLanes {
     #[cfg(target_arch = "x86_64")]
     #[inline(never)]
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-    pub(crate) unsafe fn run_avx2(&mut self, scene: &Scene) {
-        self.run(scene)
+    pub(crate) unsafe fn run_avx2(&mut self, scene: &Scene, instances: &LaneInstances) {
+        self.run(scene, instances)
     }
 
     /// The light triangles' fields of every lane, from the table by their slots.
@@ -677,6 +723,98 @@ impl DiffuseLanes {
         );
     }
 
+    /// The corners, flags and albedo of the vertices `from_row`, from their triangles'
+    /// rows in `rows` (the table of [`LaneInstances`]).
+    #[inline(always)]
+    fn take_rows(&mut self, rows: &[HitTriangle]) {
+        #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+        if crate::cpu::has_avx512() {
+            // SAFETY: the processor supports AVX-512 F, VL, DQ and BW (checked above);
+            // every row index pushed is in `rows`.
+            return unsafe { self.take_rows_avx512(rows) };
+        }
+        for k in 0..self.len {
+            if !self.from_row.0[k] {
+                continue;
+            }
+            let t = &rows[self.row[k] as usize];
+            for (c, &p) in t.p.iter().enumerate() {
+                set3(&mut self.hit_corners[c], k, p);
+            }
+            set3(&mut self.albedo, k, t.albedo);
+            self.one_sided.0[k] = t.flags & HitTriangle::ONE_SIDED != 0;
+            self.flipped.0[k] = t.flags & HitTriangle::FLIPPED != 0;
+            self.smooth.0[k] = t.flags & HitTriangle::SMOOTH != 0;
+        }
+    }
+
+    /// [`DiffuseLanes::take_rows`] by sixteen-lane gathers, one per field.
+    ///
+    /// # Safety
+    /// The processor must support AVX-512F; `self.row` of the lanes `from_row` (among
+    /// the first `len`) must index `rows`.
+    // The AVX-512 intrinsics are newer than the MSRV; the build script compiles this
+    // only with compilers that have them (`lightpath_avx512`).
+    #[allow(clippy::incompatible_msrv)]
+    #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
+    unsafe fn take_rows_avx512(&mut self, rows: &[HitTriangle]) {
+        use std::arch::x86_64::*;
+        const WORDS: i32 = (std::mem::size_of::<HitTriangle>() / 4) as i32;
+        const ALBEDO: i32 = (std::mem::offset_of!(HitTriangle, albedo) / 4) as i32;
+        const FLAGS: i32 = (std::mem::offset_of!(HitTriangle, flags) / 4) as i32;
+        let mut mask = 0u16;
+        for k in 0..self.len {
+            mask |= (self.from_row.0[k] as u16) << k;
+        }
+        let base = rows.as_ptr() as *const f32;
+        // SAFETY (intrinsics): AVX-512F (the caller); the gathers read only the lanes
+        // `mask`, at words of rows in `rows`; loads and stores of sixteen lanes.
+        unsafe {
+            let row = _mm512_mullo_epi32(
+                _mm512_loadu_si512(self.row.as_ptr() as *const __m512i),
+                _mm512_set1_epi32(WORDS),
+            );
+            let take = |field: &mut F, word: i32| {
+                let at = _mm512_add_epi32(row, _mm512_set1_epi32(word));
+                let v = _mm512_mask_i32gather_ps::<4>(
+                    _mm512_loadu_ps(field.0.as_ptr()),
+                    mask,
+                    at,
+                    base,
+                );
+                _mm512_storeu_ps(field.0.as_mut_ptr(), v);
+            };
+            for c in 0..3 {
+                for a in 0..3 {
+                    take(&mut self.hit_corners[c][a], (3 * c + a) as i32);
+                }
+            }
+            for a in 0..3 {
+                take(&mut self.albedo[a], ALBEDO + a as i32);
+            }
+            let flags = _mm512_castps_si512(_mm512_mask_i32gather_ps::<4>(
+                _mm512_setzero_ps(),
+                mask,
+                _mm512_add_epi32(row, _mm512_set1_epi32(FLAGS)),
+                base,
+            ));
+            let bit = |b: u32| _mm512_test_epi32_mask(flags, _mm512_set1_epi32(b as i32));
+            let (one_sided, flipped, smooth) = (
+                bit(HitTriangle::ONE_SIDED),
+                bit(HitTriangle::FLIPPED),
+                bit(HitTriangle::SMOOTH),
+            );
+            for k in 0..LANES {
+                if mask >> k & 1 != 0 {
+                    self.one_sided.0[k] = one_sided >> k & 1 != 0;
+                    self.flipped.0[k] = flipped >> k & 1 != 0;
+                    self.smooth.0[k] = smooth >> k & 1 != 0;
+                }
+            }
+        }
+    }
+
     /// [`DiffuseLanes::take_table`] with `lookup(field, slots)` giving each lane's value.
     #[inline(always)]
     fn take_table_with(
@@ -719,9 +857,12 @@ impl DiffuseLanes {
     /// [`PathTracer::scatter`] for all the vertices pushed, in lanes (see the module
     /// notes); lanes not pushed compute garbage that nobody reads.
     #[inline(always)]
-    pub(crate) fn run(&mut self, scene: &Scene) {
+    pub(crate) fn run(&mut self, scene: &Scene, instances: &LaneInstances) {
         if self.draws.0[..self.len].contains(&true) {
             self.draw_numbers();
+        }
+        if self.from_row.0[..self.len].contains(&true) {
+            self.take_rows(&instances.triangles);
         }
         if self.from_hit.0[..self.len].contains(&true) {
             self.interactions(scene);
@@ -1682,8 +1823,13 @@ mod tests {
     }
 
     /// Runs the lanes and compares each vertex's results with `scatter`'s or `step`'s.
-    fn run_and_compare(lanes: &mut DiffuseLanes, scene: &Scene, pending: &mut Vec<Pending>) {
-        lanes.run(scene);
+    fn run_and_compare(
+        lanes: &mut DiffuseLanes,
+        scene: &Scene,
+        instances: &LaneInstances,
+        pending: &mut Vec<Pending>,
+    ) {
+        lanes.run(scene, instances);
         lanes.finish(|r| {
             let (want, want_shadow, want_more, want_sampler, path, sampler) =
                 &mut pending[r.tag as usize];
@@ -1763,10 +1909,11 @@ mod tests {
                 DiffuseLanes::untabulated()
             };
             assert_eq!(lanes.table.is_some(), tabulated);
+            let instances = LaneInstances::new(scene);
             let (mut taken, mut refused, mut shadows, mut ended) = (0, 0, 0, 0);
             let mut pending: Vec<Pending> = Vec::new();
             let check = |lanes: &mut DiffuseLanes, pending: &mut Vec<Pending>| {
-                run_and_compare(lanes, scene, pending)
+                run_and_compare(lanes, scene, &instances, pending)
             };
             for trial in 0..6000 {
                 let (origin, dir) = random_ray(&mut rng);
@@ -1870,7 +2017,7 @@ mod tests {
             let (mut taken, mut direct) = (0, 0);
             let mut pending: Vec<Pending> = Vec::new();
             let check = |lanes: &mut DiffuseLanes, pending: &mut Vec<Pending>| {
-                run_and_compare(lanes, scene, pending)
+                run_and_compare(lanes, scene, &instances, pending)
             };
             for trial in 0..6000u32 {
                 let (origin, dir) = random_ray(&mut rng);
