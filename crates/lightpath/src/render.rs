@@ -20,13 +20,13 @@ use crate::camera::{Camera, CameraSample};
 use crate::error::{Error, Result};
 use crate::film::Image;
 #[cfg(target_arch = "x86_64")]
+use crate::geometry::MeshHits;
+#[cfg(target_arch = "x86_64")]
 use crate::integrator::{DiffuseLanes, LaneResult, PathState, PathTracer, ShadowQuery};
 use crate::integrator::{Integrator, LaneInstances};
 use crate::math::lanes::{F32x16, Mask16, LANES};
 use crate::math::Ray;
 use crate::sampling::Sampler;
-#[cfg(target_arch = "x86_64")]
-use crate::scene::BatchHit;
 use crate::scene::Scene;
 use glam::{UVec2, Vec2, Vec3};
 use rayon::prelude::*;
@@ -730,7 +730,7 @@ impl Renderer<'_> {
         let mut live: Vec<u32> = Vec::with_capacity(w);
         let mut restart: Vec<usize> = Vec::with_capacity(w);
         let mut rays: Vec<Ray> = Vec::with_capacity(w);
-        let mut hits: Vec<Option<BatchHit>> = vec![None; w];
+        let mut hits = MeshHits::default();
         // Per slot.
         let mut ended = vec![false; w];
         // A round's shadow rays, at most one per path (see `ns` below), with their slots.
@@ -834,7 +834,7 @@ impl Renderer<'_> {
                 });
             }
             self.scene
-                .intersect_batch(&rays, &mut hits[..m], &mut ray_stats);
+                .intersect_merged(&rays, &mut hits, &mut ray_stats);
             // The round's shadow rays: the first `ns` of `shadows` and `shadow_rays`.
             // The lanes' results are taken without branching on whether a path goes on
             // or has a shadow ray (each written in place and counted or not): random
@@ -863,12 +863,12 @@ impl Renderer<'_> {
                 shadows[*ns] = (s, *q);
                 *ns += has as usize;
             };
-            for i in 0..m {
-                let slot = live[i] as usize;
+            for (i, &slot) in live.iter().enumerate() {
+                let slot = slot as usize;
                 let path = &mut paths[slot].0;
                 let sampler = &mut samplers[slot];
                 let mut shadow = None;
-                let hit = hits[i].take();
+                let hit = hits.get(i);
                 // `None`: the lanes took the vertex.
                 if let Some(more) = lanes.step(
                     pt,

@@ -424,6 +424,53 @@ fn pack_blocks(positions: &[Vec3], indices: &[[u32; 3]], order: &[u32]) -> Vec<T
 /// How many blocks ahead [`pack_blocks`] asks for a block's triangle indices.
 const PACK_AHEAD: usize = 16;
 
+/// The closest hits of many rays on one mesh ([`TriangleMesh::intersect_to`]), in
+/// structure-of-arrays form: ray `i`'s distance, triangle and barycentrics, the triangle
+/// [`MeshHits::NONE`] where it hit nothing. Room for whole packets of rays.
+#[derive(Debug, Clone, Default)]
+pub struct MeshHits {
+    t: Vec<f32>,
+    prim: Vec<u32>,
+    u: Vec<f32>,
+    v: Vec<f32>,
+}
+
+impl MeshHits {
+    /// The triangle of a miss.
+    pub const NONE: u32 = u32::MAX;
+
+    /// Room for `n` hits, rounded up to whole packets.
+    fn resize(&mut self, n: usize) {
+        let n = n.next_multiple_of(16);
+        if self.t.len() < n {
+            self.t.resize(n, 0.0);
+            self.prim.resize(n, Self::NONE);
+            self.u.resize(n, 0.0);
+            self.v.resize(n, 0.0);
+        }
+    }
+
+    #[inline(always)]
+    fn set(&mut self, i: usize, hit: Option<ShapeHit>) {
+        let h = hit.unwrap_or(ShapeHit {
+            t: f32::INFINITY,
+            prim: Self::NONE,
+            uv: Vec2::ZERO,
+        });
+        (self.t[i], self.prim[i], self.u[i], self.v[i]) = (h.t, h.prim, h.uv.x, h.uv.y);
+    }
+
+    /// Ray `i`'s hit.
+    #[inline(always)]
+    pub fn get(&self, i: usize) -> Option<ShapeHit> {
+        (self.prim[i] != Self::NONE).then(|| ShapeHit {
+            t: self.t[i],
+            prim: self.prim[i],
+            uv: Vec2::new(self.u[i], self.v[i]),
+        })
+    }
+}
+
 /// One triangle as [`TriangleMesh::lane_triangle`] gives it.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct LaneTriangle {
@@ -1117,6 +1164,87 @@ impl TriangleMesh {
         }
     }
 
+    /// [`TriangleMesh::intersect_packets`] into `hits` (resized to hold the rays), in
+    /// structure-of-arrays form: each packet's hits go there with a few vector stores
+    /// where packets run, rather than one `Option<ShapeHit>` at a time.
+    pub(crate) fn intersect_to(&self, rays: &[Ray], hits: &mut MeshHits, stats: &mut RayStats) {
+        hits.resize(rays.len());
+        #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+        if let Some(bvh) = self.packet_bvh() {
+            // Leaf positions as words of the blocks (for the gather of their indices).
+            const WORDS: usize = std::mem::size_of::<TriangleBlock>() / 4;
+            if self.blocks.len() * WORDS <= i32::MAX as usize {
+                let (mut t, mut found) = ([0.0; PACKET], PacketHits::default());
+                for (p, rays) in rays.chunks(PACKET).enumerate() {
+                    // SAFETY: the processor supports AVX-512F and DQ (checked above);
+                    // `hits` holds whole packets; the blocks' words fit in `i32`.
+                    unsafe {
+                        let hit = self.packet_avx512::<false>(bvh, rays, stats, &mut t, &mut found);
+                        self.store_hits_avx512(hit, &t, &found, hits, p * PACKET);
+                    }
+                }
+                return;
+            }
+        }
+        for (i, ray) in rays.iter().enumerate() {
+            hits.set(i, self.intersect(ray, stats));
+        }
+    }
+
+    /// One packet's hits (`hit`: the lanes hit) into `hits` from position `at`: the
+    /// distances and barycentrics as they are, and each hit lane's triangle index
+    /// gathered from its block ([`MeshHits::NONE`] for the others).
+    ///
+    /// # Safety
+    /// The processor must support AVX-512F; `hits` must hold sixteen positions from
+    /// `at`, and the blocks' words must fit in `i32`.
+    #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+    #[allow(clippy::incompatible_msrv)]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
+    unsafe fn store_hits_avx512(
+        &self,
+        hit: u16,
+        t: &[f32; PACKET],
+        found: &PacketHits,
+        hits: &mut MeshHits,
+        at: usize,
+    ) {
+        use std::arch::x86_64::*;
+        const WORDS: i32 = (std::mem::size_of::<TriangleBlock>() / 4) as i32;
+        const PRIM: i32 = (std::mem::offset_of!(TriangleBlock, prim) / 4) as i32;
+        assert!(hits.t.len() >= at + PACKET, "room for a packet's hits");
+        // SAFETY (intrinsics): AVX-512F (the caller); sixteen-lane loads and stores inside
+        // the arrays (checked above); the gather reads the lanes hit, whose leaf positions
+        // are in the blocks.
+        unsafe {
+            let position = _mm512_loadu_si512(found.at.as_ptr() as *const __m512i);
+            // Word of `blocks[position / 4].prim[position % 4]`.
+            let word = _mm512_add_epi32(
+                _mm512_mullo_epi32(_mm512_srli_epi32::<2>(position), _mm512_set1_epi32(WORDS)),
+                _mm512_add_epi32(
+                    _mm512_and_si512(position, _mm512_set1_epi32(3)),
+                    _mm512_set1_epi32(PRIM),
+                ),
+            );
+            let prim = _mm512_mask_i32gather_epi32::<4>(
+                _mm512_set1_epi32(MeshHits::NONE as i32),
+                hit,
+                word,
+                self.blocks.as_ptr() as *const i32,
+            );
+            _mm512_storeu_si512(hits.prim[at..].as_mut_ptr() as *mut __m512i, prim);
+            _mm512_storeu_ps(hits.t[at..].as_mut_ptr(), _mm512_loadu_ps(t.as_ptr()));
+            _mm512_storeu_ps(
+                hits.u[at..].as_mut_ptr(),
+                _mm512_loadu_ps(found.b1.as_ptr()),
+            );
+            _mm512_storeu_ps(
+                hits.v[at..].as_mut_ptr(),
+                _mm512_loadu_ps(found.b2.as_ptr()),
+            );
+        }
+    }
+
     /// Whether [`TriangleMesh::intersect_packets`] and [`TriangleMesh::occluded_packets`]
     /// trace packets here (a `bvh8` mesh on a processor with AVX-512F and DQ) rather
     /// than ray by ray.
@@ -1782,6 +1910,25 @@ mod tests {
                 }
                 for (r, o) in rays.chunks(250).zip(occ.chunks_mut(250)) {
                     mesh.occluded_packets(r, o, s);
+                }
+                // The same packets' hits in arrays: the same hits (one `MeshHits` for all
+                // pieces, as a renderer reuses it).
+                let mut arrays = MeshHits::default();
+                for (c, r) in rays.chunks(333).enumerate() {
+                    mesh.intersect_to(r, &mut arrays, s);
+                    for (j, want) in hits[333 * c..][..r.len()].iter().enumerate() {
+                        let got = arrays.get(j);
+                        assert_eq!(
+                            got.map(|h| (h.t.to_bits(), h.prim, h.uv.to_array().map(f32::to_bits))),
+                            want.map(|h| (
+                                h.t.to_bits(),
+                                h.prim,
+                                h.uv.to_array().map(f32::to_bits)
+                            )),
+                            "ray {}",
+                            333 * c + j
+                        );
+                    }
                 }
                 let mut found = 0;
                 for (i, ray) in rays.iter().enumerate() {

@@ -25,7 +25,9 @@ pub use curves::LinearCurves;
 pub use cylinder::Cylinder;
 pub use disk::Disk;
 pub use interaction::{SurfaceInteraction, SHADOW_EPSILON};
-pub use mesh::{intersect_triangle_watertight, AlphaMask, AlphaTest, TriangleMesh, WatertightRay};
+pub use mesh::{
+    intersect_triangle_watertight, AlphaMask, AlphaTest, MeshHits, TriangleMesh, WatertightRay,
+};
 pub use mesh_data::MeshData;
 pub use plane::Plane;
 pub use rectangle::Rectangle;

@@ -34,7 +34,7 @@ use crate::material::Material;
 use crate::math::lanes::{F32x16 as F, Mask16 as M, LANES};
 use crate::math::{gamma, round_away, Ray, INV_PI, PI};
 use crate::sampling::{Pcg32, Sampler};
-use crate::scene::{BatchHit, Scene};
+use crate::scene::Scene;
 use crate::texture::Texture;
 use glam::{Vec3, Vec3A};
 
@@ -388,7 +388,8 @@ impl DiffuseLanes {
         self.len == LANES
     }
 
-    /// One vertex of a path whose ray found `hit` (by [`Scene::intersect_batch`]):
+    /// One vertex of a path whose ray found `hit` on the scene's merged mesh (by
+    /// [`Scene::intersect_merged`]):
     /// [`PathTracer::step`], with the vertex taken into the lanes where they can run it.
     /// Returns `None` for a vertex taken (its results come from [`DiffuseLanes::finish`]
     /// after a [`DiffuseLanes::run`]; call those when the lanes are full), else whether
@@ -402,17 +403,17 @@ impl DiffuseLanes {
         instances: &LaneInstances,
         tag: u32,
         path: &mut PathState,
-        hit: Option<BatchHit>,
+        hit: Option<ShapeHit>,
         sampler: &mut Sampler,
         shadow: &mut Option<ShadowQuery>,
     ) -> Option<bool> {
-        let Some(hit) = hit else {
+        let Some(shape_hit) = hit else {
             pt.miss(scene, path);
             return Some(false);
         };
         // A triangle of a surface that emits nothing: `arrive` has nothing to add, and
         // the lanes can build the interaction.
-        if let Some(&shape_hit) = hit.merged() {
+        {
             if let Some(triangle) = instances.hit_triangle(scene, shape_hit.prim) {
                 if path.depth >= pt.max_depth {
                     return Some(false);
@@ -428,7 +429,7 @@ impl DiffuseLanes {
                     None => {
                         let u = VertexSamples::draw(sampler);
                         let Some(light) = self.light(scene, &u) else {
-                            let si = scene.batch_interaction(&path.ray, hit);
+                            let si = scene.merged_interaction(&path.ray, &shape_hit);
                             let material = scene.instances[triangle.instance() as usize]
                                 .material
                                 .as_deref()
@@ -480,7 +481,7 @@ impl DiffuseLanes {
                 return None;
             }
         }
-        let si = scene.batch_interaction(&path.ray, hit);
+        let si = scene.merged_interaction(&path.ray, &shape_hit);
         let Some(material) = pt.arrive(scene, path, &si) else {
             return Some(false);
         };
@@ -1496,6 +1497,7 @@ fn sin_cos_quarter(x: F) -> (F, F) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::MeshHits;
     use crate::io::{load_scene_str, LoadOptions};
     use crate::material::{Conductor, Diffuse};
     use crate::sampling::{IndependentSampler, Pcg32};
@@ -2023,8 +2025,9 @@ mod tests {
                 let (origin, dir) = random_ray(&mut rng);
                 let dir = dir * (0.5 + rng.next_f32());
                 let ray = Ray::new(origin, dir);
-                let mut hit = [None];
-                scene.intersect_batch(&[ray], &mut hit, &mut Default::default());
+                let mut hits = MeshHits::default();
+                scene.intersect_merged(&[ray], &mut hits, &mut Default::default());
+                let hit = hits.get(0);
                 let mut path = PathState::new(&ray);
                 path.beta = Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0;
                 path.depth = 1 + trial % 5;
@@ -2038,11 +2041,10 @@ mod tests {
                 let mut sampler = Sampler::Independent(IndependentSampler::new(16, 5));
                 sampler.start_pixel_sample(UVec2::new(trial, 4), 2);
                 let (mut want, mut want_sampler, mut want_shadow) = (path, sampler.clone(), None);
-                let si = hit[0].clone().map(|h| scene.batch_interaction(&ray, h));
+                let si = hit.map(|h| scene.merged_interaction(&ray, &h));
                 let want_more = pt.step(scene, &mut want, si, &mut want_sampler, &mut want_shadow);
                 let tag = pending.len() as u32;
                 let mut shadow = None;
-                let [hit] = hit;
                 match lanes.step(
                     &pt,
                     scene,

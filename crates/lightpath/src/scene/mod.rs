@@ -9,7 +9,7 @@ pub use merged::MergedMesh;
 
 use crate::accel::{Accel, RayStats};
 use crate::camera::Camera;
-use crate::geometry::{Shape, ShapeHit, SurfaceInteraction, TriangleMesh};
+use crate::geometry::{MeshHits, Shape, ShapeHit, SurfaceInteraction, TriangleMesh};
 use crate::light::{AreaLight, Emission, Light, LightSampler};
 use crate::material::Material;
 use crate::math::{Bounds3, Ray, Transform};
@@ -168,18 +168,6 @@ enum BatchHitKind {
     Merged(ShapeHit),
     /// Any hit, traced ray by ray.
     Interaction(Box<SurfaceInteraction>),
-}
-
-impl BatchHit {
-    /// The hit, where it is on the scene's merged mesh (its `prim` indexes that mesh:
-    /// see [`Scene::merged_triangle`]).
-    #[inline(always)]
-    pub(crate) fn merged(&self) -> Option<&ShapeHit> {
-        match &self.0 {
-            BatchHitKind::Merged(h) => Some(h),
-            BatchHitKind::Interaction(_) => None,
-        }
-    }
 }
 
 impl Scene {
@@ -465,6 +453,19 @@ impl Scene {
         }
     }
 
+    /// The closest hits of many rays where all the scene's geometry is one merged mesh
+    /// ([`Scene::merged_triangle_count`]), as [`Scene::intersect_batch`] finds them, into
+    /// `hits` (their triangles index the merged mesh).
+    pub(crate) fn intersect_merged(&self, rays: &[Ray], hits: &mut MeshHits, stats: &mut RayStats) {
+        let ([m], true) = (&self.merged[..], self.only_merged()) else {
+            panic!("intersect_merged needs a scene that is one merged mesh");
+        };
+        // The rays are counted here whether or not the mesh counts them.
+        let counted = stats.rays;
+        m.mesh.intersect_to(rays, hits, stats);
+        stats.rays = counted + rays.len() as u32;
+    }
+
     /// The triangles of the scene's merged mesh, where all its geometry is that mesh
     /// (the hits [`Scene::intersect_batch`] gives are then all on it).
     pub(crate) fn merged_triangle_count(&self) -> Option<usize> {
@@ -481,7 +482,7 @@ impl Scene {
         self.merged[0].triangle(k)
     }
 
-    /// The interaction of a hit on the merged mesh (see [`BatchHit::merged`]).
+    /// The interaction of a hit on the merged mesh (see [`Scene::intersect_merged`]).
     #[inline]
     pub(crate) fn merged_interaction(&self, ray: &Ray, hit: &ShapeHit) -> SurfaceInteraction {
         self.merged[0].interaction(ray, hit)
