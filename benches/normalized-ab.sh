@@ -4,10 +4,12 @@
 # 10-20% within minutes, so timings of A and B differ by that much even when run side by
 # side; but the drift slows all of a run's code alike. So each run is sampled with
 # `perf record -e cpu-clock`, and its figure is (all its samples) / (its samples in the
-# tracing functions): time per unit of tracing work. For a change that leaves the tracing
-# code alone (the path tracer's glue, the lanes, sampling, shading), B/A of that figure is
-# B's time relative to A's. An A/A run gave ratios with a standard deviation of 1-2%
-# per pair (timings: about 10%). Not for changes to the tracing code itself.
+# tracing functions: the packets' traversal and leaf tests, not the code that hands rays
+# and hits in and out of them): time per unit of tracing work. For a change that leaves
+# the tracing code alone (the path tracer's glue, the lanes, sampling, shading), B/A of
+# that figure is B's time relative to A's. An A/A run gave ratios with a standard
+# deviation of 1-2% per pair (timings: about 10%). Not for changes to the tracing code
+# itself.
 #
 #   benches/normalized-ab.sh ROUNDS A B [SCENE]
 #   SPP=32 benches/normalized-ab.sh 6 /tmp/lightpath-before target/release/lightpath
@@ -30,7 +32,7 @@ one() { # BIN CPU
         -o "$OUT/$2.exr" -q >/dev/null 2>&1
     perf report -i "$OUT/$2.data" --no-children --sort symbol -n 2>/dev/null |
         awk '!/^#/ && NF > 2 { n = $2; all += n
-             if ($0 ~ /packet_avx512|intersect_packets|occluded_packets|with_t_max|packet_walk|subtree_ray_by_ray|intersect_batch|occluded_batch|Bvh8/) traced += n }
+             if ($0 ~ /packet_avx512|with_t_max|packet_walk|subtree_ray_by_ray|Bvh8/) traced += n }
              END { if (traced > 0) printf "%.4f\n", all / traced }'
 }
 lane() { # CPU
