@@ -24,6 +24,7 @@ use crate::geometry::MeshHits;
 #[cfg(target_arch = "x86_64")]
 use crate::integrator::{DiffuseLanes, LaneResult, PathState, PathTracer, ShadowQuery};
 use crate::integrator::{Integrator, LaneInstances};
+#[cfg(target_arch = "x86_64")]
 use crate::math::lanes::{F32x16, Mask16, LANES};
 use crate::math::Ray;
 use crate::sampling::Sampler;
@@ -273,6 +274,7 @@ impl Renderer<'_> {
     /// rays as [`PinholeLanes`] computes them, sixteen at a time.
     ///
     /// [`PinholeLanes`]: crate::camera::PinholeLanes
+    #[cfg(target_arch = "x86_64")]
     fn pinhole_lanes(&self) -> Option<crate::camera::PinholeLanes> {
         match (self.camera, &self.scene.filter) {
             (Camera::Perspective(c), crate::film::Filter::Box) => Some(c.pinhole_lanes()),
@@ -283,6 +285,7 @@ impl Renderer<'_> {
     /// [`Renderer::camera_ray`]'s rays for sixteen film points (up to `films.len()`),
     /// with its cut to the clip distances: the rays, and the lanes where there is none
     /// (seen at an angle of 90° or more from the viewing axis).
+    #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     fn pinhole_rays(
         &self,
@@ -1147,11 +1150,8 @@ impl Schedule {
 mod tests {
     use super::*;
     use crate::accel::AccelKind;
-    use crate::camera::{FovAxis, Perspective};
     use crate::io::{load_scene_str, LoadOptions, LoadedScene};
-    use crate::math::Transform;
     use crate::scene::CropWindow;
-    use glam::{Mat4, Vec4};
     use std::path::Path;
 
     fn scene(sampler: &str, spp: u32) -> LoadedScene {
@@ -1366,8 +1366,12 @@ mod tests {
     /// The tile that advances paths together makes a pinhole camera's rays sixteen at a
     /// time: the same rays as one by one, with the scene's clip distances, and none
     /// where a sheared camera looks at 90° or more from its viewing axis.
+    #[cfg(target_arch = "x86_64")]
     #[test]
     fn pinhole_rays_equal_camera_rays() {
+        use crate::camera::{FovAxis, Perspective};
+        use crate::math::Transform;
+        use glam::{Mat4, Vec4};
         let mut l = mesh_scene_built("independent", "pathtracer", 3, None, AccelKind::Bvh8);
         let Some(Camera::Perspective(loaded)) = l.scene.camera.clone() else {
             panic!("a perspective camera");
