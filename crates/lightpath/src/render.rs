@@ -804,8 +804,9 @@ impl Renderer<'_> {
                         if none.0[k] {
                             // No camera ray: the integrator's value for the sample, and
                             // the slot's next sample in the next round.
-                            let k = slot_pixel[s as usize];
-                            add_sample(&mut pixels[k], self.integrator.no_ray_value(), &mut stats);
+                            let pixel = slot_pixel[s as usize];
+                            let value = self.integrator.no_ray_value();
+                            add_sample(&mut pixels[pixel], value, &mut stats);
                             restart.push(s as usize);
                             continue;
                         }

@@ -441,6 +441,7 @@ impl MeshHits {
 
     /// Room for `n` hits, rounded up to whole packets.
     fn resize(&mut self, n: usize) {
+        // Sixteen: `PACKET`, which exists only where packets run.
         let n = n.next_multiple_of(16);
         if self.t.len() < n {
             self.t.resize(n, 0.0);

@@ -85,17 +85,16 @@ pub(crate) struct DiffuseLanes {
     // (`TriangleMesh::interaction`): the triangle, the barycentrics and the ray.
     from_hit: M,
     /// The vertices whose triangle's corners, flags and albedo the lanes take from its
-    /// row in [`LaneInstances`]' table (row `row`).
+    /// row in [`LaneInstances`]' table (row `hit_prim`).
     from_row: M,
-    row: [u32; LANES],
     hit_corners: [F3; 3],
     hit_normals: [F3; 3],
     smooth: M,
     flipped: M,
     bary: [F; 2],
     direction: F3,
-    /// The merged triangle and distance of each, for the rare triangle without area
-    /// (built one by one, with `direction`).
+    /// The merged triangle and distance of each: its table row, and for the rare
+    /// triangle without area its hit (built one by one, with `direction`).
     hit_prim: [u32; LANES],
     hit_t: [f32; LANES],
     // The light sample: whether a light was picked, and its triangle.
@@ -162,8 +161,8 @@ struct Next {
 /// following the instance's material and texture. Where all the scene's geometry is one
 /// merged mesh of at most [`LaneInstances::TABLE_TRIANGLES`] triangles, the same per
 /// triangle too, with what the lanes read of it ([`TriangleMesh::lane_triangle`]) in one
-/// 64-byte row: a vertex then stores just its row's index, and the lanes gather the
-/// rows' fields when they run ([`DiffuseLanes::take_rows`]).
+/// 64-byte row: a vertex then stores just its row's index, and the lanes take the rows'
+/// fields when they run ([`DiffuseLanes::take_rows`]).
 ///
 /// [`TriangleMesh::lane_triangle`]: crate::geometry::TriangleMesh::lane_triangle
 pub(crate) struct LaneInstances {
@@ -413,73 +412,68 @@ impl DiffuseLanes {
         };
         // A triangle of a surface that emits nothing: `arrive` has nothing to add, and
         // the lanes can build the interaction.
-        {
-            if let Some(triangle) = instances.hit_triangle(scene, shape_hit.prim) {
-                if path.depth >= pt.max_depth {
-                    return Some(false);
-                }
-                let stream = match self.picks {
-                    true => sampler.independent_rng().map(|rng| rng.parts()),
-                    false => None,
-                };
-                let diffuse = triangle.diffuse();
-                let k = match stream {
-                    // The lanes draw the vertex's numbers, and pick its light.
-                    Some(stream) => self.fill_stream(pt, tag, path, diffuse, stream),
-                    None => {
-                        let u = VertexSamples::draw(sampler);
-                        let Some(light) = self.light(scene, &u) else {
-                            let si = scene.merged_interaction(&path.ray, &shape_hit);
-                            let material = scene.instances[triangle.instance() as usize]
-                                .material
-                                .as_deref()
-                                .expect("a lane instance's material");
-                            return Some(
-                                pt.scatter(scene, path, &si, material, &u, sampler, shadow),
-                            );
-                        };
-                        self.fill(pt, tag, path, diffuse, light, &u, sampler)
-                    }
-                };
-                self.from_hit.0[k] = true;
-                match triangle {
-                    LaneHit::Row(t) => {
-                        // The corners, flags and albedo come from the row when the lanes
-                        // run ([`DiffuseLanes::take_rows`]); the vertex normals now.
-                        self.row[k] = shape_hit.prim;
-                        if t.flags & HitTriangle::SMOOTH != 0 {
-                            let normals = &instances.normals[shape_hit.prim as usize];
-                            for (c, &n) in normals.iter().enumerate() {
-                                set3(&mut self.hit_normals[c], k, n);
-                            }
-                        }
-                    }
-                    LaneHit::Mesh {
-                        p,
-                        normals,
-                        flipped,
-                        ..
-                    } => {
-                        for (c, &p) in p.iter().enumerate() {
-                            set3(&mut self.hit_corners[c], k, p);
-                        }
-                        // (Flat lanes do not read their normals.)
-                        if let Some(normals) = normals {
-                            for (c, &n) in normals.iter().enumerate() {
-                                set3(&mut self.hit_normals[c], k, n);
-                            }
-                        }
-                        self.smooth.0[k] = normals.is_some();
-                        self.flipped.0[k] = flipped;
-                    }
-                }
-                self.bary[0][k] = shape_hit.uv.x;
-                self.bary[1][k] = shape_hit.uv.y;
-                set3(&mut self.direction, k, path.ray.direction);
-                self.hit_prim[k] = shape_hit.prim;
-                self.hit_t[k] = shape_hit.t;
-                return None;
+        if let Some(triangle) = instances.hit_triangle(scene, shape_hit.prim) {
+            if path.depth >= pt.max_depth {
+                return Some(false);
             }
+            let stream = match self.picks {
+                true => sampler.independent_rng().map(|rng| rng.parts()),
+                false => None,
+            };
+            let diffuse = triangle.diffuse();
+            let k = match stream {
+                // The lanes draw the vertex's numbers, and pick its light.
+                Some(stream) => self.fill_stream(pt, tag, path, diffuse, stream),
+                None => {
+                    let u = VertexSamples::draw(sampler);
+                    let Some(light) = self.light(scene, &u) else {
+                        let si = scene.merged_interaction(&path.ray, &shape_hit);
+                        let material = scene.instances[triangle.instance() as usize]
+                            .material
+                            .as_deref()
+                            .expect("a lane instance's material");
+                        return Some(pt.scatter(scene, path, &si, material, &u, sampler, shadow));
+                    };
+                    self.fill(pt, tag, path, diffuse, light, &u, sampler)
+                }
+            };
+            self.from_hit.0[k] = true;
+            match triangle {
+                LaneHit::Row(t) => {
+                    // The corners, flags and albedo come from the row when the lanes
+                    // run ([`DiffuseLanes::take_rows`]); the vertex normals now.
+                    if t.flags & HitTriangle::SMOOTH != 0 {
+                        let normals = &instances.normals[shape_hit.prim as usize];
+                        for (c, &n) in normals.iter().enumerate() {
+                            set3(&mut self.hit_normals[c], k, n);
+                        }
+                    }
+                }
+                LaneHit::Mesh {
+                    p,
+                    normals,
+                    flipped,
+                    ..
+                } => {
+                    for (c, &p) in p.iter().enumerate() {
+                        set3(&mut self.hit_corners[c], k, p);
+                    }
+                    // (Flat lanes do not read their normals.)
+                    if let Some(normals) = normals {
+                        for (c, &n) in normals.iter().enumerate() {
+                            set3(&mut self.hit_normals[c], k, n);
+                        }
+                    }
+                    self.smooth.0[k] = normals.is_some();
+                    self.flipped.0[k] = flipped;
+                }
+            }
+            self.bary[0][k] = shape_hit.uv.x;
+            self.bary[1][k] = shape_hit.uv.y;
+            set3(&mut self.direction, k, path.ray.direction);
+            self.hit_prim[k] = shape_hit.prim;
+            self.hit_t[k] = shape_hit.t;
+            return None;
         }
         let si = scene.merged_interaction(&path.ray, &shape_hit);
         let Some(material) = pt.arrive(scene, path, &si) else {
@@ -738,7 +732,7 @@ impl DiffuseLanes {
             if !self.from_row.0[k] {
                 continue;
             }
-            let t = &rows[self.row[k] as usize];
+            let t = &rows[self.hit_prim[k] as usize];
             for (c, &p) in t.p.iter().enumerate() {
                 set3(&mut self.hit_corners[c], k, p);
             }
@@ -755,7 +749,7 @@ impl DiffuseLanes {
     /// longer on Zen 4).
     ///
     /// # Safety
-    /// The processor must support AVX-512F; `self.row` of the lanes `from_row` (among
+    /// The processor must support AVX-512F; `self.hit_prim` of the lanes `from_row` (among
     /// the first `len`) must index `rows`.
     // The AVX-512 intrinsics are newer than the MSRV; the build script compiles this
     // only with compilers that have them (`lightpath_avx512`).
@@ -780,7 +774,7 @@ impl DiffuseLanes {
         unsafe {
             let r: [__m512; 16] = std::array::from_fn(|k| {
                 let row = if mask >> k & 1 != 0 {
-                    self.row[k] as usize
+                    self.hit_prim[k] as usize
                 } else {
                     0
                 };
