@@ -538,6 +538,25 @@ impl Bvh8 {
 
     /// The primitive at every leaf position (see the `collapse` module); the positions
     /// that [`Bvh8::intersect_leaves`] hands out index it.
+    /// Every leaf's `(first, count)`: its positions in [`Bvh8::prim_order`].
+    pub(crate) fn leaves(&self) -> Vec<(u32, u32)> {
+        if self.prim_order.is_empty() {
+            return Vec::new();
+        }
+        if self.root.1 > 0 {
+            return vec![self.root];
+        }
+        let mut leaves = Vec::new();
+        for node in &self.nodes {
+            for (&child, &count) in node.child.iter().zip(&node.count) {
+                if count != EMPTY && count > 0 {
+                    leaves.push((child, count));
+                }
+            }
+        }
+        leaves
+    }
+
     pub fn prim_order(&self) -> &[u32] {
         &self.prim_order
     }
