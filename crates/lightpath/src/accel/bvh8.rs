@@ -538,6 +538,10 @@ impl Bvh8 {
 
     /// The primitive at every leaf position (see the `collapse` module); the positions
     /// that [`Bvh8::intersect_leaves`] hands out index it.
+    pub fn prim_order(&self) -> &[u32] {
+        &self.prim_order
+    }
+
     /// Every leaf's `(first, count)`: its positions in [`Bvh8::prim_order`].
     pub(crate) fn leaves(&self) -> Vec<(u32, u32)> {
         if self.prim_order.is_empty() {
@@ -555,10 +559,6 @@ impl Bvh8 {
             }
         }
         leaves
-    }
-
-    pub fn prim_order(&self) -> &[u32] {
-        &self.prim_order
     }
 
     pub fn bounds(&self) -> Bounds3 {
