@@ -202,6 +202,8 @@ pub struct WatertightRay {
     /// `(o[kx], o[ky], o[kz])`, permuted once here rather than at every block.
     origin_permuted: [f32; 3],
     shear: Vec3,
+    /// `|d[kz]|`, the length the shear's `1/dz` divides by (see [`delta_t`]).
+    dz_abs: f32,
 }
 
 impl WatertightRay {
@@ -227,6 +229,7 @@ impl WatertightRay {
             kz,
             origin_permuted: [o[kx], o[ky], o[kz]],
             shear: Vec3::new(-dx / dz, -dy / dz, 1.0 / dz),
+            dz_abs: dz.abs(),
         }
     }
 
@@ -245,6 +248,7 @@ impl WatertightRay {
             kz: axis(2),
             origin_permuted: lane(&packet.origin_permuted),
             shear: Vec3::from_array(lane(&packet.shear)),
+            dz_abs: packet.dz_abs[i],
         }
     }
 
@@ -270,6 +274,12 @@ impl WatertightRay {
     #[inline(always)]
     pub fn shear(&self) -> Vec3 {
         self.shear
+    }
+
+    /// `|dz|`, the permuted direction's largest component's magnitude.
+    #[inline(always)]
+    pub fn dz_abs(&self) -> f32 {
+        self.dz_abs
     }
 }
 
@@ -332,6 +342,7 @@ pub fn intersect_triangle_watertight(
         [az, bz, cz],
         [e0, e1, e2],
         inv_det,
+        wr.dz_abs,
     ) {
         return None;
     }
@@ -339,17 +350,36 @@ pub fn intersect_triangle_watertight(
 }
 
 /// The error bound on the watertight test's `t` (pbrt-v4, section 6.8.4) from the
-/// translated, permuted and sheared corners (`z` scaled), the edge functions and the
-/// reciprocal determinant: a hit at `t <= delta_t` is not provably in front.
+/// translated, permuted and sheared corners (`z` scaled), the edge functions, the
+/// reciprocal determinant and the ray's `|dz|` ([`WatertightRay::dz_abs`]): a hit at
+/// `t <= delta_t` is not provably in front.
+///
+/// The sheared `x` and `y` carry the error of the shear's product with the translated,
+/// unscaled `z` (`|dx/dz|, |dy/dz| <= 1`), so their bounds take that `z`, not the scaled
+/// one that pbrt's code uses there. The two agree within `√3` for a unit direction; for
+/// the object-space ray of a scaled instance (direction `1/s` long) the scaled `z` is `s`
+/// times larger, and pbrt's bound rejected every hit on a mesh scaled by 1000 (and on a
+/// long direction, as a shadow ray's to its light point, it is too small). The unscaled
+/// `z` is taken as `max|z·sz|·|dz|`, which every implementation of the test computes the
+/// same way and which is within three roundings of it: `γ7` rather than pbrt's `γ5`
+/// covers those.
 #[inline(always)]
-pub(crate) fn delta_t(x: [f32; 3], y: [f32; 3], z: [f32; 3], e: [f32; 3], inv_det: f32) -> f32 {
+pub(crate) fn delta_t(
+    x: [f32; 3],
+    y: [f32; 3],
+    z: [f32; 3],
+    e: [f32; 3],
+    inv_det: f32,
+    dz_abs: f32,
+) -> f32 {
     let max3 = |v: [f32; 3]| v[0].abs().max(v[1].abs()).max(v[2].abs());
     let max_zt = max3(z);
     let delta_z = gamma(3) * max_zt;
     let max_xt = max3(x);
     let max_yt = max3(y);
-    let delta_x = gamma(5) * (max_xt + max_zt);
-    let delta_y = gamma(5) * (max_yt + max_zt);
+    let max_zu = max_zt * dz_abs;
+    let delta_x = gamma(7) * (max_xt + max_zu);
+    let delta_y = gamma(7) * (max_yt + max_zu);
     let delta_e = 2.0 * (gamma(2) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
     let max_e = max3(e);
     3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs()
@@ -1689,6 +1719,69 @@ mod tests {
                 &mut s
             )
             .is_none());
+    }
+
+    /// Rays whose directions are far from unit length find the same hits: the
+    /// object-space rays of a mesh scaled up a thousandfold (directions 1e-3 long, as
+    /// a scaled instance's), and shadow rays aimed at a far point (directions 1e3 long).
+    /// `delta_t`'s bound once took the shear's scaled `z` for the unscaled one, and so
+    /// rejected every hit of a direction 1e-3 long on a small mesh.
+    #[test]
+    fn directions_of_any_length_hit_alike() {
+        // A small closed sphere (radius 0.08, as a Stanford bunny's size), rays from
+        // 0.6 away at points on it.
+        let mut data = closed_sphere_mesh(3);
+        for p in &mut data.positions {
+            *p *= 0.08;
+        }
+        let mut rng = Pcg32::new(17, 2);
+        let mut rays = Vec::new();
+        for _ in 0..64 {
+            let mut u = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5;
+            let o = u().normalize_or(Vec3::X) * 0.6;
+            let target = u() * 0.08;
+            rays.push(Ray::new(o, (target - o).normalize()));
+        }
+        for kind in [
+            AccelKind::List,
+            AccelKind::Bvh2,
+            AccelKind::BvhCourse,
+            AccelKind::Bvh4,
+            AccelKind::Bvh8,
+            AccelKind::Grid,
+            AccelKind::KdTree,
+        ] {
+            let mesh = TriangleMesh::new(data.clone(), false, kind).unwrap();
+            let mut s = RayStats::default();
+            for scale in [1.0f32, 1e-3, 1e-5, 1e3] {
+                let scaled: Vec<Ray> = rays
+                    .iter()
+                    .map(|r| Ray::new(r.origin, r.direction * scale))
+                    .collect();
+                let mut hits = MeshHits::default();
+                mesh.intersect_to(&scaled, &mut hits, &mut s);
+                let mut occluded = vec![false; scaled.len()];
+                mesh.occluded_packets(&scaled, &mut occluded, &mut s);
+                for (i, (ray, r)) in rays.iter().zip(&scaled).enumerate() {
+                    let want = mesh.intersect(ray, &mut s).expect("unit rays hit");
+                    let what = format!("{kind:?}, direction x{scale}, ray {i}");
+                    let h = mesh
+                        .intersect(r, &mut s)
+                        .unwrap_or_else(|| panic!("{what}"));
+                    assert_eq!(h.prim, want.prim, "{what}");
+                    let t = h.t * scale;
+                    assert!(
+                        (t - want.t).abs() <= 1e-5 * want.t,
+                        "{what}: {t} {}",
+                        want.t
+                    );
+                    assert!(mesh.occluded(r, &mut s), "{what}");
+                    let batch = hits.get(i).unwrap_or_else(|| panic!("{what}, batched"));
+                    assert_eq!(batch.prim, want.prim, "{what}, batched");
+                    assert!(occluded[i], "{what}, batched");
+                }
+            }
+        }
     }
 
     #[test]

@@ -64,11 +64,12 @@ pub struct RayPacket<'a> {
     /// with `R` the largest distance along any axis from the origin to the box:
     /// - every translated, permuted and sheared corner coordinate has `|x|, |y| ≤ 2R` and
     ///   `|z| ≤ R·|sz|`, up to rounding (the shear's `|dx/dz|`, `|dy/dz|` are at most 1,
-    ///   as `z` is the largest direction component);
+    ///   as `z` is the largest direction component), and `delta_t`'s unscaled `z`
+    ///   (`max|z|·|dz|`, see [`super::mesh::delta_t`]) is at most `R`;
     /// - with all three edge functions of one sign, the largest `|e|` is at most their
     ///   sum `|det|` (up to two roundings), so `max_e · |1/det| ≤ 1 + 4ε`;
     /// - so `delta_t = 3 (γ3 max_e max_zt + δe max_zt + δz max_e) |1/det|` is at most
-    ///   `6 γ3 Zb (1 + 4ε) + 6 Zb (γ2 Xb² + 2 γ5 (Xb + Zb) Xb) |1/det|` for `Xb = 2R`,
+    ///   `6 γ3 Zb (1 + 4ε) + 6 Zb (γ2 Xb² + 2 γ7 (Xb + R) Xb) |1/det|` for `Xb = 2R`,
     ///   `Zb = R |sz|`.
     ///
     /// The factor `1 + 2⁻¹²` covers every rounding of both computations (a few dozen of
@@ -78,6 +79,8 @@ pub struct RayPacket<'a> {
     /// afar) gives a loose bound that hits often do not pass; they then take `delta_t` as
     /// before. The tests check the bound against `delta_t` on its worst case.
     pub(crate) t_bound: [[f32; PACKET]; 2],
+    /// `|dz|` of each lane's permuted direction ([`WatertightRay::dz_abs`]).
+    pub(crate) dz_abs: [f32; PACKET],
     pub boxes: PacketLanes,
     /// The rays, for lanes that need the scalar test.
     pub(crate) rays: &'a [Ray],
@@ -113,6 +116,7 @@ impl<'a> RayPacket<'a> {
             origin_permuted: [[0.0; PACKET]; 3],
             shear: [[0.0; PACKET]; 3],
             t_bound: [[0.0; PACKET]; 2],
+            dz_abs: [0.0; PACKET],
             boxes,
             rays,
         };
@@ -155,6 +159,7 @@ impl<'a> RayPacket<'a> {
             st(&mut p.shear[1], _mm512_div_ps(neg(pdy), pdz));
             let sz = _mm512_div_ps(_mm512_set1_ps(1.0), pdz);
             st(&mut p.shear[2], sz);
+            st(&mut p.dz_abs, _mm512_abs_ps(pdz));
             // `t_bound` (the operations of the tests' scalar twin, `delta_t_bound`).
             let c = _mm512_set1_ps;
             let far = |k: usize| {
@@ -176,7 +181,7 @@ impl<'a> RayPacket<'a> {
             );
             let a = _mm512_add_ps(
                 _mm512_mul_ps(_mm512_mul_ps(c(gamma(2)), xb), xb),
-                _mm512_mul_ps(_mm512_mul_ps(c(2.0 * gamma(5)), _mm512_add_ps(xb, zb)), xb),
+                _mm512_mul_ps(_mm512_mul_ps(c(2.0 * gamma(7)), _mm512_add_ps(xb, r)), xb),
             );
             let k2 = _mm512_add_ps(
                 _mm512_mul_ps(_mm512_mul_ps(_mm512_mul_ps(c(6.0), zb), a), margin),
@@ -437,9 +442,11 @@ unsafe fn triangle_lanes<const ANY_HIT: bool, const COHERENT: bool>(
                 let delta_z = _mm512_mul_ps(_mm512_set1_ps(gamma(3)), max_zt);
                 let max_xt = max3(ax, bx, cx);
                 let max_yt = max3(ay, by, cy);
-                let g5 = _mm512_set1_ps(gamma(5));
-                let delta_x = _mm512_mul_ps(g5, _mm512_add_ps(max_xt, max_zt));
-                let delta_y = _mm512_mul_ps(g5, _mm512_add_ps(max_yt, max_zt));
+                // The unscaled `z` bound and `γ7` as in `mesh::delta_t`.
+                let max_zu = _mm512_mul_ps(max_zt, _mm512_loadu_ps(packet.dz_abs.as_ptr()));
+                let g7 = _mm512_set1_ps(gamma(7));
+                let delta_x = _mm512_mul_ps(g7, _mm512_add_ps(max_xt, max_zu));
+                let delta_y = _mm512_mul_ps(g7, _mm512_add_ps(max_yt, max_zu));
                 let delta_e = _mm512_mul_ps(
                     _mm512_set1_ps(2.0),
                     _mm512_add_ps(
@@ -751,7 +758,7 @@ mod tests {
         let r = d.x.max(d.y).max(d.z);
         let (xb, zb) = (2.0 * r, r * sz.abs());
         let k1 = 6.0 * gamma(3) * zb * DELTA_T_MARGIN + f32::MIN_POSITIVE;
-        let k2 = 6.0 * zb * (gamma(2) * xb * xb + 2.0 * gamma(5) * (xb + zb) * xb) * DELTA_T_MARGIN
+        let k2 = 6.0 * zb * (gamma(2) * xb * xb + 2.0 * gamma(7) * (xb + r) * xb) * DELTA_T_MARGIN
             + DELTA_T_UNDERFLOW;
         (k1, k2)
     }
@@ -848,7 +855,7 @@ mod tests {
             let inv_det = 1.0 / (e[0] + e[1] + e[2]);
             let zs = z.map(|a| a * s.z);
             let t = (e[0] * zs[0] + e[1] * zs[1] + e[2] * zs[2]) * inv_det;
-            let delta = delta_t(x, y, zs, e, inv_det);
+            let delta = delta_t(x, y, zs, e, inv_det, wr.dz_abs());
             let (k1, k2) = delta_t_bound(wr.origin, s.z, &bounds);
             let bound = k1 + k2 * inv_det.abs();
             assert!(

@@ -126,9 +126,11 @@ impl TriangleBlock {
         let delta_z = Vec4::splat(gamma(3)) * max_zt;
         let max_xt = ax.abs().max(bx.abs()).max(cx.abs());
         let max_yt = ay.abs().max(by.abs()).max(cy.abs());
-        let g5 = Vec4::splat(gamma(5));
-        let delta_x = g5 * (max_xt + max_zt);
-        let delta_y = g5 * (max_yt + max_zt);
+        // The unscaled `z` bound and `γ7` as in `mesh::delta_t`.
+        let max_zu = max_zt * Vec4::splat(wr.dz_abs());
+        let g7 = Vec4::splat(gamma(7));
+        let delta_x = g7 * (max_xt + max_zu);
+        let delta_y = g7 * (max_yt + max_zu);
         let delta_e = Vec4::splat(2.0)
             * (Vec4::splat(gamma(2)) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
         let max_e = e0.abs().max(e1.abs()).max(e2.abs());
@@ -398,9 +400,11 @@ pub unsafe fn intersect_pair_inline(
     let delta_z = mul(_mm256_set1_ps(gamma(3)), max_zt);
     let max_xt = max(max(abs(ax), abs(bx)), abs(cx));
     let max_yt = max(max(abs(ay), abs(by)), abs(cy));
-    let g5 = _mm256_set1_ps(gamma(5));
-    let delta_x = mul(g5, add(max_xt, max_zt));
-    let delta_y = mul(g5, add(max_yt, max_zt));
+    // The unscaled `z` bound and `γ7` as in `mesh::delta_t`.
+    let max_zu = mul(max_zt, _mm256_set1_ps(wr.dz_abs()));
+    let g7 = _mm256_set1_ps(gamma(7));
+    let delta_x = mul(g7, add(max_xt, max_zu));
+    let delta_y = mul(g7, add(max_yt, max_zu));
     let delta_e = mul(
         _mm256_set1_ps(2.0),
         add(
