@@ -1210,7 +1210,11 @@ fn flatten(top: Top) -> Vec<BvhNode> {
                 // Local index k ≥ 1 goes to base + k − 1; the root goes to `at`.
                 let base = *len;
                 singles.push((at, relocate(&sub[0], base)));
-                blocks.push((base, &sub[1..]));
+                // A subtree that is one leaf has no block: an empty one would sort after
+                // the single at its base and break the tiling.
+                if sub.len() > 1 {
+                    blocks.push((base, &sub[1..]));
+                }
                 *len += sub.len() - 1;
             }
             Top::Inner(bounds, children) => {
@@ -1675,6 +1679,35 @@ mod tests {
             let avx2 = bits(build_with(boxes.len(), |i| boxes[i], &settings, true));
             assert!(portable.0.len() > 1000);
             assert!(portable == avx2, "{settings:?}");
+        }
+    }
+
+    /// A parallel build whose top splits off a few primitives that become one leaf (a
+    /// Cornell box's twelve wall triangles merged with a 69k-triangle bunny, the first
+    /// case seen) lays its array out whole: such a subtree once left an empty block in the
+    /// layout that broke its tiling (a panic).
+    #[test]
+    fn a_top_level_leaf_lays_out() {
+        let mut rng = crate::sampling::Pcg32::new(7, 1);
+        let mut boxes: Vec<Bounds3> = (0..3 * TASK_SIZE)
+            .map(|_| {
+                let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+                Bounds3::new(c, c + Vec3::splat(1e-3))
+            })
+            .collect();
+        // Walls, far larger than the cluster, around it.
+        for k in 0..12 {
+            let (lo, hi) = (Vec3::splat(-400.0), Vec3::splat(400.0));
+            let mut b = Bounds3::new(lo, hi);
+            let axis = k % 3;
+            let side = if k % 2 == 0 { -400.0 } else { 400.0 };
+            b.min[axis] = side;
+            b.max[axis] = side;
+            boxes.push(b);
+        }
+        for settings in [BuildSettings::default(), BuildSettings::HIGH] {
+            let bvh = crate::accel::Bvh::build(&boxes, &settings);
+            bvh.validate(&boxes).unwrap();
         }
     }
 
