@@ -600,9 +600,14 @@ const LEAF_RAYS_PER_BLOCK: usize = 2;
 /// ([`packet::SharedCorners`]). On Mitsuba's Cornell box (38 triangles) that traced
 /// the path tracer's recorded closest-hit packets 8% faster and its shadow packets 3%;
 /// on the 1.1M-triangle bunny it added about a fifth to the BVH's build (204 to 250 ms
-/// on two threads) and 12 bytes per triangle, for a gain not measured there.
+/// on two threads) and 12 bytes per triangle, for a gain not measured there. 2¹⁷ takes
+/// in a Stanford bunny (69k triangles) merged into a Cornell box
+/// (`benches/scenes/cbox-bunny.xml`): with the lanes' triangle table of as many
+/// (`integrator::path_lanes`), renders there went from 2.54 to 2.86 M samples/s
+/// (medians of six alternated 64-spp renders; the table alone 2.68), images
+/// byte-identical, for 3 MB and 7 ms of loading.
 #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
-const SHARED_CORNERS_TRIANGLES: usize = 1 << 16;
+const SHARED_CORNERS_TRIANGLES: usize = 1 << 17;
 
 impl TriangleMesh {
     /// Builds a mesh from raw data. Fails if an index is out of range, a position is not
