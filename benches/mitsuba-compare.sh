@@ -84,3 +84,16 @@ for s in independent sobol; do
         fi
     fi
 done
+
+# Each round's times, and the speed ratio (Mitsuba llvm's time over lightpath's) of each
+# round and of the fastest runs: a sitting's medians move with the machine's drift, so
+# these show how much of a sitting's ratio is the drift.
+echo "rounds (seconds): mitsuba llvm:$T_LLVM | lightpath independent:$T_IND | lightpath sobol:$T_SOBOL"
+python3 - "$T_LLVM" "$T_IND" <<'PY'
+import sys, statistics as st
+mi = [float(x) for x in sys.argv[1].split()]
+lp = [float(x) for x in sys.argv[2].split()]
+r = [m / l for m, l in zip(mi, lp)]
+print("independent over llvm_ad_rgb, per round: " + " ".join(f"{x:.3f}" for x in r)
+      + f"  (median {st.median(r):.3f}; fastest runs {min(mi) / min(lp):.3f})")
+PY
