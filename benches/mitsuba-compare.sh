@@ -89,7 +89,7 @@ done
 # round and of the fastest runs: a sitting's medians move with the machine's drift, so
 # these show how much of a sitting's ratio is the drift.
 echo "rounds (seconds): mitsuba llvm:$T_LLVM | lightpath independent:$T_IND | lightpath sobol:$T_SOBOL"
-python3 - "$T_LLVM" "$T_IND" <<'PY'
+"$PY" - "$T_LLVM" "$T_IND" <<'PY'
 import sys, statistics as st
 mi = [float(x) for x in sys.argv[1].split()]
 lp = [float(x) for x in sys.argv[2].split()]
