@@ -8,8 +8,10 @@
 # and hits in and out of them): time per unit of tracing work. For a change that leaves
 # the tracing code alone (the path tracer's glue, the lanes, sampling, shading), B/A of
 # that figure is B's time relative to A's. An A/A run gave ratios with a standard
-# deviation of 1-2% per pair (timings: about 10%). Not for changes to the tracing code
-# itself.
+# deviation of 1-2% per pair (timings: about 10%). For a change to the tracing code
+# itself it is the other way round: the rest of the render is the same work in both,
+# so (A's figure - 1) / (B's figure - 1) is B's tracing time relative to A's, printed
+# as "tracing B/A" (session 57: a quad's halves tested together, 0.977).
 #
 #   benches/normalized-ab.sh ROUNDS A B [SCENE]
 #   SPP=32 benches/normalized-ab.sh 6 /tmp/lightpath-before target/release/lightpath
@@ -46,6 +48,9 @@ cat "$OUT/pairs-0" "$OUT/pairs-1" | python3 -c "
 import sys, statistics as st
 rows = [list(map(float, l.split())) for l in sys.stdin if len(l.split()) == 2]
 r = [b / a for a, b in rows]
+t = [(a - 1) / (b - 1) for a, b in rows]
 print('pairs %d  A %.4f  B %.4f (medians of all/tracing samples)  B/A median %.4f  mean %.4f  sd %.4f'
       % (len(r), st.median(x[0] for x in rows), st.median(x[1] for x in rows),
-         st.median(r), st.mean(r), st.stdev(r) if len(r) > 1 else 0.0))"
+         st.median(r), st.mean(r), st.stdev(r) if len(r) > 1 else 0.0))
+print('tracing B/A (for changes to the tracing code) median %.4f  sd %.4f'
+      % (st.median(t), st.stdev(t) if len(t) > 1 else 0.0))"
