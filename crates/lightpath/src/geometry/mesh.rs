@@ -1475,16 +1475,39 @@ impl TriangleMesh {
         t: &mut [f32; PACKET],
         found: &mut PacketHits,
     ) -> u16 {
+        // Shadow rays whose segments all lie in the box take the mesh without its box's
+        // faces (`Occluders`); the packet's `delta_t` bound from this mesh's box holds
+        // for that one's triangles too.
+        let occluders = match &self.occluders {
+            Some(o) if ANY_HIT && self.alpha.is_none() => Some(&**o),
+            _ => None,
+        };
         // SAFETY: the caller guarantees AVX-512F and DQ.
-        let (packet, t_max) = unsafe { RayPacket::new(rays, &self.delta_t_box) };
+        let (packet, t_max, held) = unsafe {
+            RayPacket::new(
+                rays,
+                &self.delta_t_box,
+                occluders.map(|o| (&o.outer, &o.inner)),
+            )
+        };
         *t = t_max;
         stats.rays += rays.len() as u32;
+        let (mesh, bvh) = match occluders {
+            Some(o) if held == packet.boxes.active => match &o.mesh {
+                Some(m) => match m.packet_bvh() {
+                    Some(b) => (m, b),
+                    None => (self, bvh),
+                },
+                None => return 0,
+            },
+            _ => (self, bvh),
+        };
         let mut single_stats = RayStats::default();
         let leaf = |t_max: &mut [f32; PACKET], first: u32, count: u32, mask: u16| {
             if count == 0 {
                 // SAFETY: the caller guarantees AVX-512F, which includes AVX2.
                 return unsafe {
-                    self.subtree_ray_by_ray::<ANY_HIT>(
+                    mesh.subtree_ray_by_ray::<ANY_HIT>(
                         bvh,
                         &packet,
                         first,
@@ -1503,16 +1526,16 @@ impl TriangleMesh {
             if rays_in * blocks.div_ceil(2) <= LEAF_RAYS_PER_BLOCK * blocks {
                 // SAFETY: the caller guarantees AVX-512F, which includes AVX2.
                 return unsafe {
-                    self.leaf_ray_by_ray::<ANY_HIT>(&packet, first, count, mask, t_max, found)
+                    mesh.leaf_ray_by_ray::<ANY_HIT>(&packet, first, count, mask, t_max, found)
                 };
             }
-            if self.shared.has(first) {
+            if mesh.shared.has(first) {
                 // SAFETY: the caller guarantees AVX-512F and DQ; the leaf's corners are shared.
                 return unsafe {
                     let leaf = packet::SharedLeaf {
-                        shared: &self.shared,
-                        positions: &self.positions,
-                        blocks: &self.blocks,
+                        shared: &mesh.shared,
+                        positions: &mesh.positions,
+                        blocks: &mesh.blocks,
                         first,
                         count,
                     };
@@ -1523,7 +1546,7 @@ impl TriangleMesh {
             for b in first as usize / BLOCK..end {
                 // An any-hit ray is done at its first hit.
                 let lanes = if ANY_HIT { mask & !any } else { mask };
-                let block = &self.blocks[b];
+                let block = &mesh.blocks[b];
                 // The leaf's own triangles in the block (not the last block's padding).
                 let n = (first + count) as usize - b * BLOCK;
                 // SAFETY: the caller guarantees AVX-512F and DQ.
@@ -1621,25 +1644,10 @@ impl TriangleMesh {
         #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
         if let Some(bvh) = self.packet_bvh() {
             let (mut t, mut found) = ([0.0; PACKET], PacketHits::default());
-            // The mesh without its box's faces, where a packet's segments all lie inside.
-            let inner = self.occluders.as_deref().and_then(|o| match &o.mesh {
-                None => Some((o, None)),
-                Some(m) => Some((o, Some((m, m.packet_bvh()?)))),
-            });
             for (rays, occluded) in rays.chunks(PACKET).zip(occluded.chunks_mut(PACKET)) {
-                let (mesh, bvh) = match inner {
-                    Some((o, mesh)) if rays.iter().all(|r| o.hold(r)) => match mesh {
-                        Some(m) => m,
-                        None => {
-                            occluded.fill(false);
-                            continue;
-                        }
-                    },
-                    _ => (self, bvh),
-                };
                 // SAFETY: the processor supports AVX-512F and DQ (checked above).
                 let hit =
-                    unsafe { mesh.packet_avx512::<true>(bvh, rays, stats, &mut t, &mut found) };
+                    unsafe { self.packet_avx512::<true>(bvh, rays, stats, &mut t, &mut found) };
                 for (i, o) in occluded.iter_mut().enumerate() {
                     *o = hit & (1 << i) != 0;
                 }

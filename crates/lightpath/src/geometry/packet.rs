@@ -99,12 +99,19 @@ unsafe fn lanes3(a: &[[f32; PACKET]; 3]) -> [std::arch::x86_64::__m512; 3] {
 impl<'a> RayPacket<'a> {
     /// The packet of up to [`PACKET`] rays (lane `i` is `rays[i]`), and the lanes'
     /// initial `t_max`: the constants of [`WatertightRay::new`], lane by lane, and
-    /// [`RayPacket::t_bound`] for triangles with their corners in `bounds`.
+    /// [`RayPacket::t_bound`] for triangles with their corners in `bounds`. With boxes
+    /// `(outer, inner)`, also the lanes whose origin lies in `outer` (its faces
+    /// included) and whose end `origin + direction · t_max` lies strictly inside
+    /// `inner`, as `mesh::Occluders::hold` finds them (else no lane).
     ///
     /// # Safety
     /// The processor must support AVX-512F and DQ.
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
-    pub unsafe fn new(rays: &'a [Ray], bounds: &Bounds3) -> (RayPacket<'a>, [f32; PACKET]) {
+    pub unsafe fn new(
+        rays: &'a [Ray],
+        bounds: &Bounds3,
+        held: Option<(&Bounds3, &Bounds3)>,
+    ) -> (RayPacket<'a>, [f32; PACKET], u16) {
         use std::arch::x86_64::*;
         // SAFETY: the caller guarantees AVX-512F and DQ; `PacketLanes::new` checks the count.
         let (boxes, dv, t_max_lanes) = unsafe { PacketLanes::with_t_max(rays) };
@@ -194,8 +201,20 @@ impl<'a> RayPacket<'a> {
             sti(&mut p.axis4[0], pick_i(x0, x1, [0, 4, 8]));
             sti(&mut p.axis4[1], pick_i(y0, y1, [0, 4, 8]));
             sti(&mut p.axis4[2], pick_i(z0, z1, [0, 4, 8]));
+            let mut in_box = 0;
+            if let Some((outer, inner)) = held {
+                in_box = p.boxes.active;
+                for k in 0..3 {
+                    // The end as `o + d · t_max` is computed there (no fused multiply-add).
+                    let end = _mm512_add_ps(o[k], _mm512_mul_ps(dv[k], t_max_lanes));
+                    in_box &= _mm512_cmp_ps_mask::<_CMP_GE_OQ>(o[k], c(outer.min[k]))
+                        & _mm512_cmp_ps_mask::<_CMP_LE_OQ>(o[k], c(outer.max[k]))
+                        & _mm512_cmp_ps_mask::<_CMP_GT_OQ>(end, c(inner.min[k]))
+                        & _mm512_cmp_ps_mask::<_CMP_LT_OQ>(end, c(inner.max[k]));
+                }
+            }
+            (p, t_max, in_box)
         }
-        (p, t_max)
     }
 }
 
@@ -790,7 +809,7 @@ mod tests {
                 })
                 .collect();
             // SAFETY: the processor has AVX-512 (checked above).
-            let (packet, _) = unsafe { RayPacket::new(&rays, &bounds) };
+            let (packet, _, _) = unsafe { RayPacket::new(&rays, &bounds, None) };
             for (i, ray) in rays.iter().enumerate() {
                 let wr = WatertightRay::new(ray);
                 let (k1, k2) = delta_t_bound(wr.origin, wr.shear().z, &bounds);
