@@ -151,19 +151,18 @@ const OCCLUDERS_TRIANGLES: usize = 1 << 17;
 
 impl Occluders {
     /// The occluders of the mesh of `positions` and `indices` whose accelerator (over
-    /// those triangles) is `accel` and box `bounds`, where they are built (see
-    /// [`Occluders`]).
+    /// those triangles, built as `kind`) is `accel` and box `bounds`, where they are
+    /// built (see [`Occluders`]); their own accelerator is built as `kind` too.
     fn new(
         positions: &[Vec3],
         indices: &[[u32; 3]],
+        kind: AccelKind,
         accel: &Accel,
         bounds: Bounds3,
     ) -> Result<Option<Box<Occluders>>, String> {
-        let kind = match accel {
-            Accel::Bvh8(_) => AccelKind::Bvh8,
-            Accel::Bvh4(_) => AccelKind::Bvh4,
-            _ => return Ok(None),
-        };
+        if !matches!(accel, Accel::Bvh8(_) | Accel::Bvh4(_)) {
+            return Ok(None);
+        }
         if indices.is_empty() || indices.len() > OCCLUDERS_TRIANGLES || bounds.is_empty() {
             return Ok(None);
         }
@@ -767,7 +766,8 @@ impl TriangleMesh {
         }
         let data = data.unweld_face_colors();
         let positions = &data.positions;
-        let accel = Accel::build_from(accel, data.indices.len(), |i| {
+        let kind = accel;
+        let accel = Accel::build_from(kind, data.indices.len(), |i| {
             let t = &data.indices[i];
             let mut b = Bounds3::from_point(positions[t[0] as usize]);
             b.expand(positions[t[1] as usize]);
@@ -818,7 +818,7 @@ impl TriangleMesh {
             _ => packet::SharedCorners::default(),
         };
         let occluders = if occluders {
-            Occluders::new(&data.positions, &data.indices, &accel, bounds)?
+            Occluders::new(&data.positions, &data.indices, kind, &accel, bounds)?
         } else {
             None
         };
@@ -907,7 +907,8 @@ impl TriangleMesh {
         }
     }
 
-    /// Bytes of the acceleration structure and the packed triangle blocks.
+    /// Bytes of the acceleration structure and the packed triangle blocks, with those of
+    /// the mesh without its box's faces where it has one ([`Occluders`]).
     pub fn accel_memory_bytes(&self) -> usize {
         let shared = {
             #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
@@ -919,7 +920,15 @@ impl TriangleMesh {
                 0
             }
         };
-        self.accel.memory_bytes() + std::mem::size_of_val(self.blocks.as_slice()) + shared
+        let occluders = self
+            .occluders
+            .as_ref()
+            .and_then(|o| o.mesh.as_ref())
+            .map_or(0, |m| m.accel_memory_bytes());
+        self.accel.memory_bytes()
+            + std::mem::size_of_val(self.blocks.as_slice())
+            + shared
+            + occluders
     }
 
     /// Object-space area of triangle `prim`.
