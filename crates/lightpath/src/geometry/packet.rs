@@ -29,7 +29,9 @@
 // only with compilers that have them.
 #![allow(clippy::incompatible_msrv)]
 
-use super::mesh::{intersect_triangle_watertight, WatertightRay};
+use super::mesh::{intersect_triangle_watertight, FaceTable, WatertightRay, FACE_TABLE};
+
+const _: () = assert!(FACE_TABLE == PACKET, "a face table's row is one vector");
 use super::triangle_block::{TriangleBlock, BLOCK};
 use crate::accel::PacketLanes;
 use crate::math::{gamma, Bounds3, Ray};
@@ -82,6 +84,8 @@ pub struct RayPacket<'a> {
     /// `|dz|` of each lane's permuted direction ([`WatertightRay::dz_abs`]).
     pub(crate) dz_abs: [f32; PACKET],
     pub boxes: PacketLanes,
+    /// The rays' directions.
+    pub(crate) dir: [[f32; PACKET]; 3],
     /// The rays, for lanes that need the scalar test.
     pub(crate) rays: &'a [Ray],
 }
@@ -124,6 +128,7 @@ impl<'a> RayPacket<'a> {
             shear: [[0.0; PACKET]; 3],
             t_bound: [[0.0; PACKET]; 2],
             dz_abs: [0.0; PACKET],
+            dir: [[0.0; PACKET]; 3],
             boxes,
             rays,
         };
@@ -156,6 +161,9 @@ impl<'a> RayPacket<'a> {
             let dv = [dx, dy, dz];
             let (pdx, pdy, pdz) = (pick(x0, x1, dv), pick(y0, y1, dv), pick(z0, z1, dv));
             let st = |a: &mut [f32; PACKET], v| _mm512_storeu_ps(a.as_mut_ptr(), v);
+            for (row, &v) in p.dir.iter_mut().zip(&dv) {
+                st(row, v);
+            }
             st(&mut p.origin_permuted[0], pick(x0, x1, o));
             st(&mut p.origin_permuted[1], pick(y0, y1, o));
             st(&mut p.origin_permuted[2], pick(z0, z1, o));
@@ -306,8 +314,8 @@ pub unsafe fn intersect_block<const ANY_HIT: bool, const COHERENT: bool>(
             ];
             triangle_lanes::<ANY_HIT, COHERENT>(
                 v,
-                b * BLOCK + j,
-                || block.triangle(j),
+                _mm512_set1_epi32((b * BLOCK + j) as i32),
+                |_| block.triangle(j),
                 (t_min, k1, k2),
                 mask,
                 &mut s,
@@ -317,6 +325,163 @@ pub unsafe fn intersect_block<const ANY_HIT: bool, const COHERENT: bool>(
             );
         }
         s.store::<ANY_HIT>(t_max_lanes, hits);
+        s.any
+    }
+}
+
+/// The closest hits of `packet`'s rays among `table`'s triangles: lowers `t_max_lanes`
+/// and records the hits in `hits` (leaf positions from `table.base`), as the block
+/// test of those triangles would; returns the lanes hit.
+///
+/// Each ray tests the triangles of the faces whose planes it crosses, at a distance of
+/// at least zero, within the face widened by the table's margin: a triangle in a face
+/// lies inside it, so the ray cannot hit the face's other triangles. A ray that crosses
+/// one such face stops at its first hit there (the face's triangles all lie in one
+/// plane, which the ray meets at one distance); one that crosses two tests both, and one
+/// that crosses more (through a corner) tests every triangle.
+///
+/// # Safety
+/// The processor must support AVX-512F and DQ.
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt,avx512f,avx512vl,avx512dq,avx512bw")]
+pub(crate) unsafe fn intersect_faces(
+    table: &FaceTable,
+    packet: &RayPacket<'_>,
+    t_max_lanes: &mut [f32; PACKET],
+    hits: &mut PacketHits,
+) -> u16 {
+    use std::arch::x86_64::*;
+    // SAFETY (all intrinsics): the caller guarantees AVX-512F and DQ; loads and stores of
+    // 16-lane arrays; the permutes' indices are below 32.
+    unsafe {
+        let ld = |a: &[f32; PACKET]| _mm512_loadu_ps(a.as_ptr());
+        let c = _mm512_set1_ps;
+        let ci = _mm512_set1_epi32;
+        let o = lanes3(&packet.boxes.origin);
+        let d = lanes3(&packet.dir);
+        let active = packet.boxes.active;
+        // Each lane's first and second face crossed (table start and length), and the
+        // lanes that cross one, two, or more.
+        let (mut seen1, mut seen2, mut more) = (0u16, 0u16, 0u16);
+        let zero = _mm512_setzero_si512();
+        let (mut start1, mut len1, mut start2, mut len2) = (zero, zero, zero, zero);
+        for k in 0..3 {
+            let r = _mm512_div_ps(c(1.0), d[k]);
+            for side in 0..2 {
+                let f = 2 * k + side;
+                let (start, end) = table.range[f];
+                if start == end {
+                    continue;
+                }
+                // Distances and points as plain products and sums; a zero direction
+                // component gives an infinite or NaN distance, which fails the tests.
+                let t = _mm512_mul_ps(_mm512_sub_ps(c(table.plane[f]), o[k]), r);
+                let mut m = _mm512_mask_cmp_ps_mask::<_CMP_GT_OQ>(active, t, _mm512_setzero_ps());
+                for b in [(k + 1) % 3, (k + 2) % 3] {
+                    let p = _mm512_add_ps(o[b], _mm512_mul_ps(t, d[b]));
+                    m = _mm512_mask_cmp_ps_mask::<_CMP_GE_OQ>(m, p, c(table.lo[b]));
+                    m = _mm512_mask_cmp_ps_mask::<_CMP_LE_OQ>(m, p, c(table.hi[b]));
+                }
+                let (s, n) = (ci(start as i32), ci((end - start) as i32));
+                let first = m & !seen1;
+                let second = m & seen1 & !seen2;
+                more |= m & seen2;
+                start1 = _mm512_mask_mov_epi32(start1, first, s);
+                len1 = _mm512_mask_mov_epi32(len1, first, n);
+                start2 = _mm512_mask_mov_epi32(start2, second, s);
+                len2 = _mm512_mask_mov_epi32(len2, second, n);
+                seen1 |= first;
+                seen2 |= second;
+            }
+        }
+        if seen1 == 0 {
+            return 0;
+        }
+        // Lanes through a corner test the whole table.
+        start1 = _mm512_mask_mov_epi32(start1, more, zero);
+        len1 = _mm512_mask_mov_epi32(len1, more, ci(table.len as i32));
+        len2 = _mm512_mask_mov_epi32(len2, more, zero);
+        let single = seen1 & !seen2;
+        let total = _mm512_add_epi32(len1, len2);
+        // The corners' rows (x, y, z of every entry) and each lane's permuted axes.
+        let row = |c: usize, k: usize| ld(&table.coords[c][k]);
+        let axis = |a: usize| {
+            _mm512_srli_epi32::<2>(_mm512_loadu_si512(
+                packet.axis4[a].as_ptr() as *const __m512i
+            ))
+        };
+        let kv = [axis(0), axis(1), axis(2)];
+        // Per permuted axis: 16 added to the entry where that axis is y (the second
+        // table of the pair), and the lanes where it is z.
+        let off = kv
+            .map(|k| _mm512_maskz_mov_epi32(_mm512_cmpeq_epi32_mask(k, ci(1)), ci(PACKET as i32)));
+        let is_z = kv.map(|k| _mm512_cmpeq_epi32_mask(k, ci(2)));
+        let ([ox, oy, oz], [sx, sy, sz]) = (lanes3(&packet.origin_permuted), lanes3(&packet.shear));
+        let t_min = ld(&packet.boxes.t_min);
+        let (k1, k2) = (ld(&packet.t_bound[0]), ld(&packet.t_bound[1]));
+        let mut s = Lanes::load(t_max_lanes, hits);
+        let mut done = 0u16;
+        let mut entries = [0u32; PACKET];
+        let mut j = 0;
+        loop {
+            let jv = ci(j);
+            let lanes = _mm512_mask_cmplt_epi32_mask(seen1 & !done, jv, total);
+            if lanes == 0 {
+                break;
+            }
+            let in_first = _mm512_cmplt_epi32_mask(jv, len1);
+            let entry = _mm512_mask_mov_epi32(
+                _mm512_add_epi32(start2, _mm512_sub_epi32(jv, len1)),
+                in_first,
+                _mm512_add_epi32(start1, jv),
+            );
+            // Inactive lanes may index anything: keep their entries in the table.
+            let entry = _mm512_and_si512(entry, ci(PACKET as i32 - 1));
+            _mm512_storeu_si512(entries.as_mut_ptr() as *mut __m512i, entry);
+            let g = |corner: usize, a: usize| {
+                let xy = _mm512_permutex2var_ps(
+                    row(corner, 0),
+                    _mm512_add_epi32(entry, off[a]),
+                    row(corner, 1),
+                );
+                _mm512_mask_permutexvar_ps(xy, is_z[a], entry, row(corner, 2))
+            };
+            // Translate to the ray origin, permute and shear (as the block test).
+            let az = _mm512_sub_ps(g(0, 2), oz);
+            let bz = _mm512_sub_ps(g(1, 2), oz);
+            let cz = _mm512_sub_ps(g(2, 2), oz);
+            let ax = _mm512_add_ps(_mm512_sub_ps(g(0, 0), ox), _mm512_mul_ps(sx, az));
+            let ay = _mm512_add_ps(_mm512_sub_ps(g(0, 1), oy), _mm512_mul_ps(sy, az));
+            let bx = _mm512_add_ps(_mm512_sub_ps(g(1, 0), ox), _mm512_mul_ps(sx, bz));
+            let by = _mm512_add_ps(_mm512_sub_ps(g(1, 1), oy), _mm512_mul_ps(sy, bz));
+            let cx = _mm512_add_ps(_mm512_sub_ps(g(2, 0), ox), _mm512_mul_ps(sx, cz));
+            let cy = _mm512_add_ps(_mm512_sub_ps(g(2, 1), oy), _mm512_mul_ps(sy, cz));
+            let v = [
+                ax,
+                ay,
+                _mm512_mul_ps(az, sz),
+                bx,
+                by,
+                _mm512_mul_ps(bz, sz),
+                cx,
+                cy,
+                _mm512_mul_ps(cz, sz),
+            ];
+            triangle_lanes::<false, false>(
+                v,
+                _mm512_add_epi32(entry, ci(table.base as i32)),
+                |i| table.corners(entries[i] as usize),
+                (t_min, k1, k2),
+                lanes,
+                &mut s,
+                packet,
+                t_max_lanes,
+                hits,
+            );
+            // A lane that crosses one face is done at its first hit there.
+            done |= single & s.any;
+            j += 1;
+        }
+        s.store::<false>(t_max_lanes, hits);
         s.any
     }
 }
@@ -383,8 +548,8 @@ impl Lanes {
 #[allow(clippy::too_many_arguments)]
 unsafe fn triangle_lanes<const ANY_HIT: bool, const COHERENT: bool>(
     v: [std::arch::x86_64::__m512; 9],
-    position: usize,
-    corners: impl Fn() -> (glam::Vec3, glam::Vec3, glam::Vec3),
+    position: std::arch::x86_64::__m512i,
+    corners: impl Fn(usize) -> (glam::Vec3, glam::Vec3, glam::Vec3),
     (t_min, k1, k2): (
         std::arch::x86_64::__m512,
         std::arch::x86_64::__m512,
@@ -508,7 +673,7 @@ unsafe fn triangle_lanes<const ANY_HIT: bool, const COHERENT: bool>(
             any |= valid;
             if !ANY_HIT {
                 t_max = _mm512_mask_mov_ps(t_max, valid, t);
-                at = _mm512_mask_mov_epi32(at, valid, _mm512_set1_epi32(position as i32));
+                at = _mm512_mask_mov_epi32(at, valid, position);
                 hb1 = _mm512_mask_mov_ps(hb1, valid, _mm512_mul_ps(e1, inv_det));
                 hb2 = _mm512_mask_mov_ps(hb2, valid, _mm512_mul_ps(e2, inv_det));
             }
@@ -519,11 +684,13 @@ unsafe fn triangle_lanes<const ANY_HIT: bool, const COHERENT: bool>(
             _mm512_storeu_si512(hp, at);
             _mm512_storeu_ps(hp1, hb1);
             _mm512_storeu_ps(hp2, hb2);
-            let (p0, p1, p2) = corners();
+            let mut positions = [0u32; PACKET];
+            _mm512_storeu_si512(positions.as_mut_ptr() as *mut __m512i, position);
             let mut bits = edge_zero;
             while bits != 0 {
                 let i = bits.trailing_zeros() as usize;
                 bits &= bits - 1;
+                let (p0, p1, p2) = corners(i);
                 let wr = WatertightRay::from_lane(packet, i);
                 if let Some((t, _, u, v)) = intersect_triangle_watertight(
                     &wr,
@@ -536,7 +703,7 @@ unsafe fn triangle_lanes<const ANY_HIT: bool, const COHERENT: bool>(
                     any |= 1 << i;
                     if !ANY_HIT {
                         t_max_lanes[i] = t;
-                        hits.at[i] = position as u32;
+                        hits.at[i] = positions[i];
                         hits.b1[i] = u;
                         hits.b2[i] = v;
                     }
@@ -755,8 +922,8 @@ unsafe fn leaf_shared<const ANY_HIT: bool, const COHERENT: bool>(
             let lanes = if ANY_HIT { mask & !s.any } else { mask };
             triangle_lanes::<ANY_HIT, COHERENT>(
                 [a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2]],
-                position,
-                || blocks[position / BLOCK].triangle(position % BLOCK),
+                _mm512_set1_epi32(position as i32),
+                |_| blocks[position / BLOCK].triangle(position % BLOCK),
                 (t_min, k1, k2),
                 lanes,
                 &mut s,

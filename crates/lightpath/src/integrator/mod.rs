@@ -14,7 +14,7 @@ pub use aov::{first_hit, Aov, AovLayer, AovVariable, FirstHit};
 pub use camera_direction::CameraDirection;
 pub use direct::{power_heuristic, Direct};
 pub(crate) use path_lanes::LaneInstances;
-#[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+#[cfg(target_arch = "x86_64")]
 pub(crate) use path_lanes::{DiffuseLanes, LaneResult};
 pub use path_tracer::{PathState, PathTracer, ShadowQuery};
 
