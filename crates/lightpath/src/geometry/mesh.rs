@@ -143,8 +143,8 @@ struct Occluders {
     outer: Bounds3,
     /// The box shrunk by the margin: segments end strictly inside it.
     inner: Bounds3,
-    /// The triangles in the box's faces, for closest-hit packets, which trace `mesh`
-    /// for the others; `None` where there are more than a packet's width of them, or no
+    /// The triangles in the box's faces, for closest hits (packets and single rays),
+    /// which trace `mesh` for the others; `None` where there are more than a packet's width of them, or no
     /// others. Their entries follow `mesh`'s own blocks there.
     faces: Option<Box<FaceTable>>,
 }
@@ -185,9 +185,11 @@ impl Occluders {
         let face_of = |t: &[u32; 3]| {
             let [a, b, c] = t.map(|i| positions[i as usize]);
             (0..6).find(|&f| {
-                let (k, p) = match f % 2 {
-                    0 => (f / 2, bounds.min[f / 2]),
-                    _ => (f / 2, bounds.max[f / 2]),
+                let k = f / 2;
+                let p = if f % 2 == 0 {
+                    bounds.min[k]
+                } else {
+                    bounds.max[k]
                 };
                 a[k] == p && b[k] == p && c[k] == p
             })
@@ -383,11 +385,14 @@ impl FaceTable {
                 }
             }
         }
-        let entries: Vec<u32> = match n {
+        // (No allocation: this runs for every ray where packets do not.)
+        let (first, second) = match n {
             0 => return None,
-            1 | 2 => crossed[..n].iter().flat_map(|&(s, e)| s..e).collect(),
-            _ => (0..self.len).collect(),
+            1 => (crossed[0].0..crossed[0].1, 0..0),
+            2 => (crossed[0].0..crossed[0].1, crossed[1].0..crossed[1].1),
+            _ => (0..self.len, 0..0),
         };
+        let entries = first.chain(second);
         let mut t_max = ray.t_max;
         let mut best = None;
         for e in entries {
