@@ -543,6 +543,7 @@ impl Bvh8 {
     }
 
     /// Every leaf's `(first, count)`: its positions in [`Bvh8::prim_order`].
+    #[cfg_attr(not(all(target_arch = "x86_64", lightpath_avx512)), allow(dead_code))]
     pub(crate) fn leaves(&self) -> Vec<(u32, u32)> {
         if self.prim_order.is_empty() {
             return Vec::new();

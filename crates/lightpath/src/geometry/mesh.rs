@@ -90,6 +90,7 @@ pub struct TriangleMesh {
     /// The accelerator's box, where the mesh has blocks and at least 90% of its triangles
     /// have an area of [`DELTA_T_BOUND_AREA`] times the box's largest extent squared;
     /// else empty. [`RayPacket::new`] bounds the triangle tests' `delta_t` from it.
+    #[cfg_attr(not(all(target_arch = "x86_64", lightpath_avx512)), allow(dead_code))]
     delta_t_box: Bounds3,
     /// Whether the processor has the AVX2 tier (`crate::cpu`): the queries are then
     /// compiled for it.
