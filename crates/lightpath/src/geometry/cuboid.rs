@@ -130,7 +130,11 @@ mod tests {
             let got = Cuboid.intersect(&ray);
             match (expected, got) {
                 (Some(t), Some(h)) => {
-                    prop_assert!((h.t as f64 - t).abs() < 1e-4 * (1.0 + t));
+                    // An entry this near the origin (which lies within 1e-3 of a face) is
+                    // either taken or skipped as self-intersection: the reference skips
+                    // it below 1e-4, the cuboid only below its rounding error.
+                    let near_entry = enter.abs() < 1e-3 && (h.t as f64 - enter).abs() < 1e-5;
+                    prop_assert!(near_entry || (h.t as f64 - t).abs() < 1e-4 * (1.0 + t));
                     let si = Cuboid.interaction(&ray, &h);
                     prop_assert!((si.p.abs().max_element() - 1.0).abs() < 1e-6);
                     prop_assert!((si.n.length() - 1.0).abs() < 1e-6);
