@@ -145,8 +145,8 @@ struct Occluders {
     /// The box shrunk by the margin: segments end strictly inside it.
     inner: Bounds3,
     /// The triangles in the box's faces, for closest hits (packets and single rays),
-    /// which trace `mesh` for the others; `None` where there are more than a packet's width of them, or no
-    /// others. Their entries follow `mesh`'s own blocks there.
+    /// which trace `mesh` for the others; `None` where there are more than a packet's
+    /// width of them, or no others. Their entries follow `mesh`'s own blocks there.
     faces: Option<Box<FaceTable>>,
 }
 
