@@ -104,6 +104,11 @@ pub struct TriangleMesh {
     /// [`crate::cpu::has_avx512`]).
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
     avx512: bool,
+    /// A packet's leaf entered by `r` rays in `b` blocks is tested ray by ray (each ray
+    /// against 8-lane pairs of blocks) where `r · ⌈b/2⌉ ≤ leaf_rays · b`, else sixteen
+    /// lanes at a time ([`crate::cpu::packet_leaf_rays_per_block`]).
+    #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+    leaf_rays: u32,
     /// The packets' leaves whose triangles share corners (see
     /// [`packet::SharedCorners`]).
     #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
@@ -884,13 +889,6 @@ fn triangle_area(p0: Vec3, p1: Vec3, p2: Vec3) -> f32 {
 /// the box; this asks seven times that.
 const DELTA_T_BOUND_AREA: f32 = 1e-3;
 
-/// A packet's leaf entered by `r` rays in `b` blocks is tested ray by ray (each ray
-/// against 8-lane pairs of blocks) where `r · ⌈b/2⌉ ≤ LEAF_RAYS_PER_BLOCK · b`: a
-/// 16-lane test costs about as much per triangle as a ray's 8-lane pair test (measured
-/// on Mitsuba's Cornell box: 1 and 3 were slower than 2).
-#[cfg(all(target_arch = "x86_64", lightpath_avx512))]
-const LEAF_RAYS_PER_BLOCK: usize = 2;
-
 /// The most triangles a mesh has for its packets to test leaves by shared corners
 /// ([`packet::SharedCorners`]). On Mitsuba's Cornell box (38 triangles) that traced
 /// the path tracer's recorded closest-hit packets 8% faster and its shadow packets 3%;
@@ -1033,6 +1031,8 @@ impl TriangleMesh {
             pair_blocks: crate::cpu::leaf_blocks_per_test() == 2,
             #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
             avx512: crate::cpu::has_avx512(),
+            #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+            leaf_rays: crate::cpu::packet_leaf_rays_per_block(),
             #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
             shared,
             area_distribution: std::sync::OnceLock::new(),
@@ -1761,8 +1761,8 @@ impl TriangleMesh {
             let blocks = end - first as usize / BLOCK;
             let rays_in = mask.count_ones() as usize;
             // Few rays in a leaf: each alone through 8-lane pairs of blocks costs less
-            // than sixteen-lane tests of every triangle (measured on the Cornell box).
-            if rays_in * blocks.div_ceil(2) <= LEAF_RAYS_PER_BLOCK * blocks {
+            // than sixteen-lane tests of every triangle (see `leaf_rays`).
+            if rays_in * blocks.div_ceil(2) <= mesh.leaf_rays as usize * blocks {
                 // SAFETY: the caller guarantees AVX-512F, which includes AVX2.
                 return unsafe {
                     mesh.leaf_ray_by_ray::<ANY_HIT>(&packet, first, count, mask, t_max, found)
@@ -2686,13 +2686,25 @@ mod tests {
                 }
                 blockwise.shared = Default::default();
             }
+            // Leaves taken sixteen lanes at a time whatever their rays, and ray by ray
+            // where up to eight rays enter them (`leaf_rays`).
+            #[allow(unused_mut)]
+            let (mut lanes, mut alone) = (mesh.clone(), mesh.clone());
+            #[cfg(all(target_arch = "x86_64", lightpath_avx512))]
+            {
+                (lanes.leaf_rays, alone.leaf_rays) = (0, 4);
+            }
             for (mesh, rays) in [
                 (&mesh, rays.clone()),
                 (&mesh, one_octant.clone()),
                 (&unbounded, rays.clone()),
                 (&unbounded, one_octant.clone()),
                 (&blockwise, rays.clone()),
-                (&blockwise, one_octant),
+                (&blockwise, one_octant.clone()),
+                (&lanes, rays.clone()),
+                (&lanes, one_octant.clone()),
+                (&alone, rays.clone()),
+                (&alone, one_octant),
             ] {
                 let (found, missed) = packets_match(mesh, &rays, 0.0);
                 assert!(found > 300, "only {found} hits");
