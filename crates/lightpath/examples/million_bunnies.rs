@@ -118,7 +118,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &[1.0, 1.0],
     )?;
     let integrator = Integrator::Direct(Direct);
-    let sampler = Sampler::Sobol(SobolSampler::new(spp, 0));
+    let sampler = Sampler::Sobol(Box::new(SobolSampler::new(spp, 0)));
     let t2 = Instant::now();
     let (image, stats) = Renderer {
         scene: &scene,

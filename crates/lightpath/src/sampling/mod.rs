@@ -24,11 +24,15 @@ use glam::{UVec2, Vec2};
 /// <sampler type="sobol" count="64"/>
 /// <sampler type="halton" count="36"/>
 /// ```
+///
+/// The low-discrepancy samplers' state (a batch of points, Halton's digit table) is
+/// boxed: the path tracer keeps a sampler per path in flight (a tile's 256), and the
+/// enum at the independent sampler's size keeps those close together in the cache.
 #[derive(Debug, Clone)]
 pub enum Sampler {
     Independent(IndependentSampler),
-    Sobol(SobolSampler),
-    Halton(HaltonSampler),
+    Sobol(Box<SobolSampler>),
+    Halton(Box<HaltonSampler>),
 }
 
 impl Sampler {
@@ -92,8 +96,8 @@ impl Sampler {
     pub fn with_samples_per_pixel(&self, spp: u32) -> Sampler {
         match self {
             Sampler::Independent(s) => Sampler::Independent(IndependentSampler::new(spp, s.seed)),
-            Sampler::Sobol(s) => Sampler::Sobol(SobolSampler::new(spp, s.seed)),
-            Sampler::Halton(s) => Sampler::Halton(HaltonSampler::new(spp, s.seed)),
+            Sampler::Sobol(s) => Sampler::Sobol(Box::new(SobolSampler::new(spp, s.seed))),
+            Sampler::Halton(s) => Sampler::Halton(Box::new(HaltonSampler::new(spp, s.seed))),
         }
     }
 
@@ -103,8 +107,12 @@ impl Sampler {
             Sampler::Independent(s) => {
                 Sampler::Independent(IndependentSampler::new(s.samples_per_pixel, seed))
             }
-            Sampler::Sobol(s) => Sampler::Sobol(SobolSampler::new(s.samples_per_pixel, seed)),
-            Sampler::Halton(s) => Sampler::Halton(HaltonSampler::new(s.samples_per_pixel, seed)),
+            Sampler::Sobol(s) => {
+                Sampler::Sobol(Box::new(SobolSampler::new(s.samples_per_pixel, seed)))
+            }
+            Sampler::Halton(s) => {
+                Sampler::Halton(Box::new(HaltonSampler::new(s.samples_per_pixel, seed)))
+            }
         }
     }
 
@@ -120,8 +128,8 @@ impl Sampler {
         };
         match kind {
             "independent" => Some(Sampler::Independent(IndependentSampler::new(spp, seed))),
-            "sobol" => Some(Sampler::Sobol(SobolSampler::new(spp, seed))),
-            "halton" => Some(Sampler::Halton(HaltonSampler::new(spp, seed))),
+            "sobol" => Some(Sampler::Sobol(Box::new(SobolSampler::new(spp, seed)))),
+            "halton" => Some(Sampler::Halton(Box::new(HaltonSampler::new(spp, seed)))),
             _ => None,
         }
     }
