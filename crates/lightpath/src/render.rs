@@ -29,7 +29,7 @@ use crate::math::lanes::{F32x16, Mask16, LANES};
 use crate::math::Ray;
 use crate::sampling::Sampler;
 use crate::scene::Scene;
-use glam::{UVec2, Vec2, Vec3};
+use glam::{UVec2, Vec2, Vec3, Vec3A};
 use rayon::prelude::*;
 use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -742,16 +742,9 @@ impl Renderer<'_> {
         // Per slot.
         let mut ended = vec![false; w];
         // A round's shadow rays, at most one per path (see `ns` below), with their slots.
-        let mut shadows: Vec<(usize, ShadowQuery)> = vec![
-            (
-                0,
-                ShadowQuery {
-                    ray: Ray::new(Vec3::ZERO, Vec3::Z),
-                    contribution: Default::default(),
-                },
-            );
-            w
-        ];
+        // (Each shadow ray's slot and the light it adds: the rays themselves go to
+        // `shadow_rays` only.)
+        let mut shadows: Vec<(usize, Vec3A)> = vec![(0, Vec3A::ZERO); w];
         let mut shadow_rays: Vec<Ray> = vec![Ray::new(Vec3::ZERO, Vec3::Z); w];
         let mut ended_at = vec![0u32; w];
         let mut occluded = vec![false; w];
@@ -856,7 +849,7 @@ impl Renderer<'_> {
                              paths: &mut [(PathState, Vec3)],
                              samplers: &mut [Sampler],
                              ended: &mut [bool],
-                             shadows: &mut [(usize, ShadowQuery)],
+                             shadows: &mut [(usize, Vec3A)],
                              shadow_rays: &mut [Ray],
                              ns: &mut usize| {
                 let s = r.tag as usize;
@@ -869,7 +862,7 @@ impl Renderer<'_> {
                 }
                 let (has, q) = r.shadow_query();
                 shadow_rays[*ns] = q.ray;
-                shadows[*ns] = (s, *q);
+                shadows[*ns] = (s, q.contribution);
                 *ns += has as usize;
             };
             for (i, &slot) in live.iter().enumerate() {
@@ -892,7 +885,7 @@ impl Renderer<'_> {
                     ended[slot] = !more;
                     if let Some(q) = shadow {
                         shadow_rays[ns] = q.ray;
-                        shadows[ns] = (slot, q);
+                        shadows[ns] = (slot, q.contribution);
                         ns += 1;
                     }
                 }
@@ -920,9 +913,9 @@ impl Renderer<'_> {
             }
             self.scene
                 .occluded_batch(&shadow_rays[..ns], &mut occluded[..ns], &mut ray_stats);
-            for ((s, q), &blocked) in shadows[..ns].iter().zip(&occluded[..ns]) {
+            for (&(s, light), &blocked) in shadows[..ns].iter().zip(&occluded[..ns]) {
                 if !blocked {
-                    q.add_to(&mut paths[*s].0);
+                    ShadowQuery::add_light(&mut paths[s].0, light);
                 }
             }
             // Retire the paths that ended, in order: their samples, then their pixels'

@@ -99,7 +99,13 @@ impl ShadowQuery {
     /// path's next [`PathTracer::step`].
     #[inline(always)]
     pub fn add_to(&self, path: &mut PathState) {
-        path.l += self.contribution;
+        ShadowQuery::add_light(path, self.contribution);
+    }
+
+    /// [`ShadowQuery::add_to`] for a query's `contribution` kept apart from its ray.
+    #[inline(always)]
+    pub(crate) fn add_light(path: &mut PathState, contribution: Vec3A) {
+        path.l += contribution;
     }
 }
 
