@@ -198,6 +198,7 @@ pub(crate) fn leaf_blocks_per_test() -> u32 {
 /// Whether the processor executes each 512-bit vector instruction as two 256-bit
 /// halves: AMD's Zen 4 (family 19h; Zen 3, the same family, has no AVX-512). Intel's
 /// AVX-512 cores, and Zen 5's full-width ones, execute them whole.
+#[cfg_attr(not(all(target_arch = "x86_64", lightpath_avx512)), allow(dead_code))]
 fn splits_512_bit_on(vendor: &[u8; 12], signature: u32) -> bool {
     vendor == b"AuthenticAMD" && family_and_model(signature).0 == 0x19
 }
@@ -210,6 +211,7 @@ fn splits_512_bit_on(vendor: &[u8; 12], signature: u32) -> bool {
 /// cycle). Measured on Mitsuba's Cornell box with the path tracer
 /// (`benches/normalized-ab.sh`): on Zen 4, 2 traced faster than 1 and 3; on an Intel
 /// Xeon with AMX, 1 took 4-6% less tracing time than 2, 0 3%, and 3 5% more.
+#[cfg_attr(not(all(target_arch = "x86_64", lightpath_avx512)), allow(dead_code))]
 pub(crate) fn packet_leaf_rays_per_block() -> u32 {
     static SPLITS: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     let splits = *SPLITS.get_or_init(|| {
